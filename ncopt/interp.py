@@ -1,0 +1,523 @@
+"""Modal interpreter: :class:`Program` -> :class:`Toolpath` (numpy arrays).
+
+The modal tables of RS-274 are constant data below; the interpreter is a
+function of the program and a start state.  Plain blocks are interpreted with
+vectorised forward fills (a 1M-block program in about a second); arcs and
+expressions take a per-line path.
+
+Nothing is guessed: where the position cannot be known (a subprogram call, a
+macro, a return to home, a parameter the program does not set, an opaque
+line that may move the machine) the axes become unknown until the program
+states them again absolutely, and moves in between are not planned.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import NcoptError
+from .expr import Params, Unknown
+from .model import LineKind, Motion, Program, Toolpath
+
+MM_PER_INCH = 25.4
+
+# modal groups of G codes (values x10 so that 38.2 -> 382 is an integer key)
+G_MOTION = {0, 10, 20, 30, 330, 382, 383, 384, 385, 730, 760, 800, 810, 820, 830, 840,
+            850, 860, 870, 880, 890}
+G_PLANE = {170, 180, 190, 171, 181, 191}
+G_DISTANCE = {900, 910}
+G_ARC_DISTANCE = {901, 911}
+G_UNITS = {200, 210}
+G_FEED_MODE = {930, 940, 950}
+G_COMP = {400, 410, 420, 411, 421}
+G_NON_MODAL_MOVE = {280, 300, 530, 920, 921, 922, 923, 520, 100, 281, 301}
+CANNED = {730, 760, 810, 820, 830, 840, 850, 860, 870, 880, 890}
+
+# opaque keywords known not to move the machine (Sinumerik settings)
+HARMLESS_OPAQUE = {"MSG", "CYCLE832", "DEF", "STOPRE", "WORKPIECE", "SOFT", "BRISK",
+                   "FFWON", "FFWOF", "COMPCAD", "COMPON", "COMPOF", "COMPSURF", "G642",
+                   "G641", "G64", "TRAFOOF", "UPATH", "SPATH", "FGROUP", "FNORM", "FLIN"}
+FLOW_CONTROL = {"IF", "GOTO", "WHILE", "DO", "END", "REPEAT", "CALL", "PCALL", "LOOP",
+                "ENDLOOP", "FOR", "ENDFOR", "ENDIF", "ELSE", "ENDWHILE", "RET", "M17"}
+
+
+@dataclass(frozen=True)
+class StartState:
+    """Modal state before the first line (a control's usual power-on state)."""
+
+    inch: bool = False
+    absolute: bool = True
+    arc_absolute: bool = False
+    plane: int = 170
+    chord_tol_mm: float = 0.005
+
+
+def interpret(prog: Program, start: StartState = StartState()) -> Toolpath:
+    """Interpret a program into cutter locations.
+
+    Returns
+    -------
+    Toolpath
+        One row per CL point; arcs split within ``start.chord_tol_mm``.
+    """
+    values, poisoned, warnings = _evaluate(prog)
+    lines = _LineTable(prog, values)
+    executed = _executed_lines(prog, lines, warnings)
+    _check_semantics(prog, lines, executed)
+    modal = _modal_state(lines, start, executed)
+    pos_mm, known = _positions(prog, lines, modal, executed, poisoned, warnings)
+    return _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings)
+
+
+class _LineTable:
+    """Per-line word values, NaN where a line has no such word.
+
+    ``axis[c]`` (n_lines,) float64 for each letter c present in the program;
+    ``g``/``m`` list the G and M codes (x10, int) with their lines.
+    """
+
+    def __init__(self, prog: Program, values: np.ndarray) -> None:
+        self.n = prog.n_lines
+        self.letters = {}
+        letters = prog.word_letter
+        for code in np.unique(letters).tolist():
+            if code in (ord("G"), ord("M"), ord("N"), ord("O")):
+                continue
+            sel = letters == code
+            arr = np.full(self.n, np.nan)
+            arr[prog.word_line[sel]] = values[sel]
+            present = np.zeros(self.n, dtype=bool)
+            present[prog.word_line[sel]] = True
+            self.letters[chr(code)] = (arr, present)
+        gsel = letters == ord("G")
+        self.g_line = prog.word_line[gsel]
+        self.g_code = np.round(values[gsel] * 10).astype(np.int64, copy=False) if gsel.any() \
+            else np.zeros(0, np.int64)
+        msel = letters == ord("M")
+        self.m_line = prog.word_line[msel]
+        self.m_code = np.nan_to_num(values[msel], nan=-1).astype(np.int64)
+
+    def value(self, letter: str) -> np.ndarray:
+        return self.letters[letter][0] if letter in self.letters else np.full(self.n, np.nan)
+
+    def present(self, letter: str) -> np.ndarray:
+        return self.letters[letter][1] if letter in self.letters else np.zeros(self.n, bool)
+
+    def g_group(self, group: set) -> np.ndarray:
+        """(n,) float: the code of this group on each line (NaN if none).
+
+        G80 yields to another motion code on the same line.
+        """
+        out = np.full(self.n, np.nan)
+        sel = np.isin(self.g_code, list(group))
+        cancel = sel & (self.g_code == 800)
+        out[self.g_line[cancel]] = 800
+        out[self.g_line[sel & ~cancel]] = self.g_code[sel & ~cancel]
+        return out
+
+    def has_g(self, codes) -> np.ndarray:
+        out = np.zeros(self.n, dtype=bool)
+        out[self.g_line[np.isin(self.g_code, list(codes))]] = True
+        return out
+
+    def has_m(self, codes) -> np.ndarray:
+        out = np.zeros(self.n, dtype=bool)
+        out[self.m_line[np.isin(self.m_code, list(codes))]] = True
+        return out
+
+
+def ffill(values: np.ndarray, initial: float = np.nan) -> np.ndarray:
+    """Forward-fill NaNs with the last value before them (``initial`` at the start)."""
+    n = values.shape[0]
+    ok = ~np.isnan(values)
+    idx = np.where(ok, np.arange(n), -1)
+    np.maximum.accumulate(idx, out=idx)
+    out = np.where(idx >= 0, values[np.maximum(idx, 0)], initial)
+    return out
+
+
+def _evaluate(prog: Program):
+    """Evaluate expression words and assignments in program order.
+
+    Returns word values (n_words,) with expressions filled in (NaN where
+    unknown), a (n_lines,) bool of lines whose expressions could not be known,
+    and the warnings list.
+    """
+    values = prog.word_value.copy()
+    poisoned = np.zeros(prog.n_lines, dtype=bool)
+    warnings: list[str] = []
+    if not prog.line_exprs and not prog.opaque_reason:
+        return values, poisoned, warnings
+    params = Params()
+    events = sorted(set(prog.line_exprs) | set(prog.opaque_reason))
+    for i in events:
+        if i in prog.opaque_reason:
+            if prog.opaque_reason[i].upper() in FLOW_CONTROL or _is_oword(prog, i):
+                params.values.clear()  # flow we do not follow: nothing known stays known
+            continue
+        pending = []
+        for kind, a, b in prog.line_exprs[i]:
+            try:
+                if kind == "word":
+                    w = int(np.searchsorted(prog.word_start, a))
+                    values[w] = params.eval(b)
+                else:
+                    pending.append((params.key(a), params.eval(b)))
+            except Unknown:
+                poisoned[i] = True
+                if kind == "assign":
+                    try:
+                        params.values.pop(params.key(a), None)
+                    except Unknown:
+                        params.values.clear()
+            except (ZeroDivisionError, ValueError, OverflowError) as exc:
+                raise NcoptError(f"cannot evaluate expression: {exc}; fix the expression",
+                                 prog.path, i + 1, 1) from None
+            except NcoptError as exc:
+                raise NcoptError(f"{exc.message}; fix the parameter reference", prog.path,
+                                 i + 1, 1) from None
+        for key, value in pending:  # assignments take effect after the line is read
+            params.values[key] = value
+    return values, poisoned, warnings
+
+
+_OWORD = re.compile(r"\s*/?\s*(?:N[0-9.]+\s*)?O\s*(?:<[^>]*>|[0-9]+|#<[^>]*>|#[0-9]+)\s*"
+                    r"([A-Za-z]+)", re.IGNORECASE)
+
+
+def oword_keyword(text: str) -> str | None:
+    """The o-word keyword of a LinuxCNC control line (``sub``, ``call``...), lower case."""
+    m = _OWORD.match(text)
+    return m.group(1).lower() if m else None
+
+
+def _is_oword(prog: Program, i: int) -> bool:
+    return oword_keyword(prog.line_text(i)) is not None
+
+
+def _executed_lines(prog: Program, lines: _LineTable, warnings: list) -> np.ndarray:
+    """Lines the control runs in reading order: not subroutine bodies, not after M2/M30."""
+    executed = np.ones(prog.n_lines, dtype=bool)
+    depth, sub_start = 0, None
+    for i in sorted(prog.opaque_reason):
+        keyword = oword_keyword(prog.line_text(i))
+        if keyword == "endsub":
+            depth -= 1
+            if depth == 0 and sub_start is not None:
+                executed[sub_start:i + 1] = False
+        elif keyword == "sub":
+            if depth > 0:
+                raise NcoptError("nested subroutine definition; end the first 'sub' with "
+                                 "'endsub' before starting another", prog.path, i + 1, 1)
+            depth, sub_start = depth + 1, i
+    ends = np.flatnonzero(lines.has_m({2, 30}) & executed)
+    if ends.size:
+        executed[ends[0] + 1:] = False
+    executed &= prog.line_kind != LineKind.TRAILER
+    return executed
+
+
+def _check_semantics(prog: Program, lines: _LineTable, executed: np.ndarray) -> None:
+    """Errors a control would raise (the LinuxCNC interpreter's own checks)."""
+    # G80 beside a motion code is accepted by Mach3/Fanuc posts (N100G00G21G17G90G40G49G80)
+    groups = [G_MOTION - {800}, G_NON_MODAL_MOVE | {40}, G_PLANE, G_DISTANCE, G_UNITS,
+              G_FEED_MODE, G_COMP]
+    for group in groups:
+        sel = np.isin(lines.g_code, list(group))
+        counts = np.bincount(lines.g_line[sel], minlength=lines.n)
+        bad = np.flatnonzero((counts > 1) & executed)
+        if bad.size:
+            _fail(prog, bad[0], "two G codes from the same modal group on one line; "
+                  "put them on separate lines")
+    motion = ffill(lines.g_group(G_MOTION))
+    rotary = lines.present("A") | lines.present("B") | lines.present("C")
+    bad = np.flatnonzero(np.isin(motion, list(CANNED)) & rotary & executed)
+    if bad.size:
+        _fail(prog, bad[0], "a rotary axis word (A/B/C) in a canned cycle; remove it")
+    probe = lines.has_g({382, 383, 384, 385})
+    axes = lines.present("X") | lines.present("Y") | lines.present("Z")
+    bad = np.flatnonzero(probe & ~axes & executed)
+    if bad.size:
+        _fail(prog, bad[0], "all axes missing with a probe move (G38.x); give a target")
+    r_used = np.isin(motion, [20, 30] + list(CANNED))
+    r_used |= lines.has_g({640, 100, 760, 700, 710, 711, 712, 720, 721, 722})
+    r_used |= lines.has_m({19})
+    bad = np.flatnonzero(lines.present("R") & ~r_used & executed)
+    if bad.size:
+        _fail(prog, bad[0], "R word with no G code that uses it; remove the R word")
+    arc = np.isin(motion, [20, 30]) & executed & (axes | lines.has_g({20, 30}))
+    no_centre = ~(lines.present("I") | lines.present("J") | lines.present("K") | lines.present("R"))
+    if (arc & no_centre).any():
+        _fail(prog, np.flatnonzero(arc & no_centre)[0],
+              "arc with none of I, J, K or R; give the centre or the radius")
+    _check_comp_exit(prog, lines, motion, executed)
+    both = lines.present("R") & lines.has_g({640}) & lines.has_m({19})
+    if both.any():
+        _fail(prog, np.flatnonzero(both)[0], "R word is ambiguous with both G64 and M19; "
+              "use separate lines")
+
+
+def _check_comp_exit(prog, lines, motion, executed) -> None:
+    """The move after leaving cutter compensation (G40) must be straight."""
+    comp = lines.g_group(G_COMP)
+    words = [lines.present(k) for k in "XYZIJKR"]
+    moves = np.flatnonzero(executed & np.isin(motion, [0, 10, 20, 30]) & np.logical_or.reduce(words))
+    for i in np.flatnonzero(comp == 400).tolist():
+        before = comp[:i][~np.isnan(comp[:i])]
+        if before.size == 0 or before[-1] == 400:
+            continue
+        nxt = moves[moves >= i]
+        if nxt.size and motion[nxt[0]] in (20, 30):
+            _fail(prog, nxt[0], "the move just after leaving cutter compensation (G40) "
+                  "must be straight, not an arc")
+
+
+def _fail(prog: Program, line: int, message: str) -> None:
+    raise NcoptError(message, prog.path, int(line) + 1, 1)
+
+
+@dataclass(frozen=True)
+class _Modal:
+    """Modal state in force at each line, (n_lines,) arrays."""
+
+    motion: np.ndarray  # G code x10, NaN if never set
+    inch: np.ndarray  # bool
+    absolute: np.ndarray  # bool
+    arc_absolute: np.ndarray
+    plane: np.ndarray  # 170 / 180 / 190
+    feed_mode: np.ndarray  # 930 / 940 / 950
+    comp: np.ndarray  # 400 / 410 / 420
+    feed: np.ndarray  # programmed F in program units (NaN before any)
+    spindle_rpm: np.ndarray
+    spindle_on: np.ndarray
+    tool: np.ndarray
+
+
+def _modal_state(lines: _LineTable, start: StartState, executed: np.ndarray) -> _Modal:
+    def group(codes, initial):
+        arr = lines.g_group(codes)
+        arr[~executed] = np.nan
+        return ffill(arr, initial)
+
+    units = group(G_UNITS, 200.0 if start.inch else 210.0)
+    spindle_on = np.full(lines.n, np.nan)
+    for codes, state in (({3, 4}, 1.0), ({5}, 0.0), ({2, 30}, 0.0)):
+        spindle_on[lines.has_m(codes) & executed] = state
+    s_words = np.where(executed, lines.value("S"), np.nan)
+    speed = ffill(s_words, 0.0)
+    running = ffill(spindle_on, 0.0) > 0
+    t_words = np.where(executed, lines.value("T"), np.nan)
+    t_ffill = ffill(t_words, -1.0)
+    changes = lines.has_m({6}) & executed
+    tool = ffill(np.where(changes, t_ffill, np.nan), -1.0) if changes.any() else t_ffill
+    feed = ffill(np.where(executed, lines.value("F"), np.nan))
+    return _Modal(
+        motion=group(G_MOTION, np.nan), inch=units == 200.0,
+        absolute=group(G_DISTANCE, 900.0 if start.absolute else 910.0) == 900.0,
+        arc_absolute=group(G_ARC_DISTANCE, 901.0 if start.arc_absolute else 911.0) == 901.0,
+        plane=group(G_PLANE, float(start.plane)), feed_mode=group(G_FEED_MODE, 940.0),
+        comp=group(G_COMP, 400.0), feed=feed, spindle_rpm=speed, spindle_on=running, tool=tool)
+
+
+def _unknown_events(prog, lines, modal, executed, poisoned, warnings) -> np.ndarray:
+    """(n,) bool: lines after which no axis position can be trusted."""
+    event = np.zeros(lines.n, dtype=bool)
+    event |= lines.has_g({280, 300, 530, 920, 921, 922, 923, 520, 281, 301})
+    event |= lines.has_m({6, 98, 99}) | lines.has_g({650, 660})
+    event |= np.isin(modal.motion, list(CANNED)) | np.isin(modal.motion, [330, 382, 383, 384, 385])
+    event |= np.isin(modal.comp, [410, 420, 411, 421])
+    for i, reason in prog.opaque_reason.items():
+        if reason.upper() not in HARMLESS_OPAQUE and not reason.endswith("="):
+            event[i] = True
+            warnings.append(f"{prog.path}:{i + 1}: '{reason}' is not interpreted by ncopt; "
+                            "the moves after it keep their S/F until the position is "
+                            "known again")
+        elif reason.upper().startswith(("$", ":")):
+            event[i] = True
+    lines_l = lines.present("L") & ~lines.has_g({100, 760}) & ~np.isin(modal.motion, list(CANNED))
+    event |= lines_l  # Sinumerik L100: subprogram call
+    event |= poisoned & (lines.present("X") | lines.present("Y") | lines.present("Z"))
+    return event & executed
+
+
+def _positions(prog, lines, modal, executed, poisoned, warnings):
+    """Absolute positions in mm per line (n,3) and whether each axis is known."""
+    events = _unknown_events(prog, lines, modal, executed, poisoned, warnings)
+    special = lines.has_g(G_NON_MODAL_MOVE) | np.isin(modal.motion, list(CANNED))
+    scale = np.where(modal.inch, MM_PER_INCH, 1.0)
+    pos = np.zeros((lines.n, 3))
+    known = np.zeros((lines.n, 3), dtype=bool)
+    idx = np.arange(lines.n)
+    for k, axis in enumerate("XYZ"):
+        value = lines.value(axis) * scale
+        present = lines.present(axis) & executed & ~special & ~np.isnan(value)
+        absolute = present & modal.absolute
+        increment = np.where(present & ~modal.absolute, value, 0.0)
+        cum = np.cumsum(increment)
+        base = np.where(absolute, value - cum, np.nan)
+        pos[:, k] = ffill(base, 0.0) + cum
+        last_abs = np.maximum.accumulate(np.where(absolute, idx, -1))
+        last_evt = np.maximum.accumulate(np.where(events, idx, -1))
+        known[:, k] = last_abs > last_evt
+        # an event on the same line as an absolute word: the word is a target
+        # of that special move (G28 X0...), the axis stays unknown
+    return pos, known
+
+
+def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings) -> Toolpath:
+    motion = modal.motion
+    axes_present = lines.present("X") | lines.present("Y") | lines.present("Z")
+    arc_words = lines.present("I") | lines.present("J") | lines.present("K") | lines.present("R")
+    special = lines.has_g(G_NON_MODAL_MOVE)
+    is_lin = np.isin(motion, [0, 10]) & axes_present
+    is_arc = np.isin(motion, [20, 30]) & (axes_present | arc_words)
+    move = (is_lin | is_arc) & executed & ~special & (prog.line_kind == LineKind.WORDS)
+    move_lines = np.flatnonzero(move)
+    end = pos_mm[move_lines]
+    all_known = known.all(axis=1)
+    end_known = all_known[move_lines]
+    scale = np.where(modal.inch, MM_PER_INCH, 1.0)
+    feed_mm = modal.feed * scale
+    inverse_or_rev = modal.feed_mode != 940
+    comp = modal.comp != 400
+    arcs = np.flatnonzero(is_arc[move_lines])
+    pieces = [None] * move_lines.shape[0]
+    counts = np.ones(move_lines.shape[0], dtype=np.int64)
+    seg_len = np.zeros(move_lines.shape[0])
+    prev_pt = np.vstack((np.zeros((1, 3)), end[:-1]))
+    prev_known = np.concatenate(([False], end_known[:-1]))
+    seg_len[:] = np.linalg.norm(end - prev_pt, axis=1)
+    for j in arcs.tolist():
+        i = move_lines[j]
+        if not (prev_known[j] and end_known[j]):
+            continue
+        pts, lengths = _arc_points(prog, lines, modal, i, prev_pt[j], end[j], start.chord_tol_mm)
+        pieces[j] = (pts, lengths)
+        counts[j] = pts.shape[0]
+    _check_feed(prog, lines, modal, move_lines, is_lin, is_arc)
+    n_pts = int(counts.sum()) + 1
+    xyz = np.zeros((n_pts, 3))
+    rows = np.concatenate(([0], np.cumsum(counts)))  # first row of each move, minus 1
+    xyz[rows[1:]] = end
+    lengths = np.zeros(n_pts)
+    lengths[rows[1:]] = seg_len
+    for j, piece in enumerate(pieces):
+        if piece is not None:
+            xyz[rows[j] + 1:rows[j + 1] + 1] = piece[0]
+            lengths[rows[j] + 1:rows[j + 1] + 1] = piece[1]
+    xyz[0] = end[0] if end.shape[0] else 0.0
+    rep = lambda a, first: np.concatenate(([first], np.repeat(a, counts)))  # noqa: E731
+    line = rep(move_lines, -1).astype(np.int32)
+    mcode = rep(np.nan_to_num(motion[move_lines], nan=-10) // 10, -1).astype(np.int8)
+    seg_known = end_known & prev_known
+    seg_known &= ~inverse_or_rev[move_lines] & ~comp[move_lines]
+    known_pts = rep(seg_known, False)
+    feed_moves = np.isin(motion[move_lines], [10, 20, 30])
+    _warn_unplanned(prog, move_lines[feed_moves], seg_known[feed_moves], modal, warnings)
+    return Toolpath(
+        xyz_mm=xyz, line=line, motion=mcode,
+        feed_mm_min=rep(np.where(mcode_is_feed(motion[move_lines]), feed_mm[move_lines],
+                                 np.nan), np.nan),
+        spindle_rpm=rep(modal.spindle_rpm[move_lines], 0.0),
+        seg_len_mm=lengths, known=known_pts, tool=rep(modal.tool[move_lines], -1).astype(np.int32),
+        line_inch=modal.inch, spindle_on=rep(modal.spindle_on[move_lines], False),
+        warnings=tuple(warnings))
+
+
+def mcode_is_feed(motion_x10: np.ndarray) -> np.ndarray:
+    return np.isin(motion_x10, [10, 20, 30])
+
+
+def _check_feed(prog, lines, modal, move_lines, is_lin, is_arc) -> None:
+    feed_moves = move_lines[np.isin(modal.motion[move_lines], [10, 20, 30])]
+    bad = feed_moves[(np.nan_to_num(modal.feed[feed_moves], nan=0.0) <= 0)
+                     & (modal.feed_mode[feed_moves] == 940)]
+    if bad.size:
+        _fail(prog, bad[0], "feed move with zero feed rate; add an F word before it")
+
+
+def _warn_unplanned(prog, move_lines, seg_known, modal, warnings) -> None:
+    unknown = move_lines[~seg_known]
+    if unknown.size == 0:
+        return
+    breaks = np.flatnonzero(np.diff(unknown) > 1)
+    starts = np.concatenate(([unknown[0]], unknown[breaks + 1]))
+    stops = np.concatenate((unknown[breaks], [unknown[-1]]))
+    for a, b in list(zip(starts.tolist(), stops.tolist()))[:20]:
+        why = "position not known"
+        if modal.feed_mode[a] != 940:
+            why = "inverse-time or per-revolution feed (G93/G95)"
+        elif modal.comp[a] != 400:
+            why = "cutter radius compensation (G41/G42) active"
+        warnings.append(f"{prog.path}:{a + 1}-{b + 1}: not planned ({why}); S/F left as programmed")
+    if len(starts) > 20:
+        warnings.append(f"{prog.path}: {len(starts) - 20} more stretches not planned")
+
+
+_PLANE_AXES = {170: (0, 1, 2), 180: (2, 0, 1), 190: (1, 2, 0)}
+
+
+def _arc_points(prog, lines, modal, i, p0, p1, tol_mm):
+    """Points and exact lengths of the arc on line i from p0 to p1 (mm)."""
+    a, b, c = _PLANE_AXES.get(int(modal.plane[i]), (0, 1, 2))
+    scale = MM_PER_INCH if modal.inch[i] else 1.0
+    offs = {k: lines.value(k)[i] * scale for k in "IJK"}
+    off = np.nan_to_num(np.array([offs["I"], offs["J"], offs["K"]]))
+    has_ijk = any(lines.present(k)[i] for k in "IJK")
+    cw = modal.motion[i] == 20
+    if lines.present("R")[i] and not has_ijk:
+        center = _center_from_r(prog, i, p0, p1, lines.value("R")[i] * scale, cw, a, b)
+    elif has_ijk:
+        center = off.copy() if modal.arc_absolute[i] else p0 + off
+    else:
+        _fail(prog, i, "arc with none of I, J, K or R; give the centre or the radius")
+    u0, v0 = p0[a] - center[a], p0[b] - center[b]
+    u1, v1 = p1[a] - center[a], p1[b] - center[b]
+    r0, r1 = math.hypot(u0, v0), math.hypot(u1, v1)
+    # LinuxCNC's tolerance: 2*0.01 mm*sqrt2 (2*0.001 inch*sqrt2) and 0.1 % relative
+    t_abs = 2 * math.sqrt(2) * (0.001 * MM_PER_INCH if modal.inch[i] else 0.01)
+    err = abs(r0 - r1)
+    if err > 100 * t_abs or (err > t_abs and err / max(r0, r1) > 0.001):
+        _fail(prog, i, f"radius to end of arc differs from radius to start "
+              f"({r0:.4f} vs {r1:.4f} mm); correct the arc centre or end point")
+    t0, t1 = math.atan2(v0, u0), math.atan2(v1, u1)
+    sweep = (t0 - t1) if cw else (t1 - t0)
+    sweep %= 2 * math.pi
+    if sweep < 1e-12:
+        sweep = 2 * math.pi
+    turns = lines.value("P")[i]
+    if not np.isnan(turns) and turns > 1:
+        sweep += 2 * math.pi * (int(turns) - 1)
+    r = max(r0, 1e-9)
+    step = 2 * math.acos(max(1 - tol_mm / r, -1.0)) if tol_mm < r else math.pi / 2
+    n = max(int(math.ceil(sweep / max(step, 1e-6))), 1)
+    n = min(n, 100000)
+    t = t0 + (-1 if cw else 1) * sweep * np.arange(1, n + 1) / n
+    pts = np.empty((n, 3))
+    pts[:, a] = center[a] + r * np.cos(t)
+    pts[:, b] = center[b] + r * np.sin(t)
+    pts[:, c] = p0[c] + (p1[c] - p0[c]) * np.arange(1, n + 1) / n
+    pts[-1] = p1
+    length = math.hypot(r * sweep, p1[c] - p0[c]) / n
+    return pts, np.full(n, length)
+
+
+def _center_from_r(prog, i, p0, p1, radius, cw, a, b):
+    du, dv = p1[a] - p0[a], p1[b] - p0[b]
+    chord = math.hypot(du, dv)
+    if chord < 1e-12:
+        _fail(prog, i, "R-format arc with identical start and end point; use I/J/K")
+    r = abs(radius)
+    if chord > 2 * r + 1e-6:
+        _fail(prog, i, f"arc radius {r:.4f} mm is too small for the chord {chord:.4f} mm")
+    h = math.sqrt(max(r * r - chord * chord / 4, 0.0))
+    # the centre lies left of the chord for CCW short arcs; R < 0 asks for the long arc
+    sign = (1 if not cw else -1) * (1 if radius > 0 else -1)
+    center = np.array(p0, dtype=float)
+    center[a] = p0[a] + du / 2 - sign * h * dv / chord
+    center[b] = p0[b] + dv / 2 + sign * h * du / chord
+    return center

@@ -1,0 +1,300 @@
+"""Small typed objects passed between the pipeline stages.
+
+The data flows one way::
+
+    text -> Program (parse) -> Toolpath (interp) -> Contacts (geometry)
+         -> Plan (planner) -> edits (rewrite) -> text
+
+Arrays are numpy; every array documents its shape and unit.  Lengths are in
+millimetres inside ncopt whatever the program's own units are.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+import numpy as np
+
+
+class LineKind(IntEnum):
+    """What a source line is, as far as ncopt is concerned."""
+
+    BLANK = 0  #: empty or whitespace / comment only
+    WORDS = 1  #: word-address block ncopt understands (maybe with expressions)
+    OPAQUE = 2  #: recognised but not understood (cycles, macros, o-words); never touched
+    PERCENT = 3  #: a ``%`` tape mark line
+    TRAILER = 4  #: after the closing ``%``: not part of the program, kept as is
+
+
+class Motion(IntEnum):
+    """Motion mode of a toolpath point (the move that ends at it)."""
+
+    NONE = -1  #: not a move (start point)
+    RAPID = 0
+    LINEAR = 1
+    ARC_CW = 2
+    ARC_CCW = 3
+
+
+@dataclass(frozen=True)
+class Program:
+    """A parsed NC program: the text and a table of its words.
+
+    The text is the file decoded as latin-1, so character offsets are byte
+    offsets and any byte round-trips.
+
+    Attributes
+    ----------
+    path : str
+        Name used in messages (``-`` for stdin).
+    text : str
+        Whole program, latin-1 decoded, unchanged.
+    line_start : (n_lines + 1,) int64
+        Character offset of each line start; the last entry is ``len(text)``.
+        Line ``i`` (0-based) spans ``text[line_start[i]:line_start[i+1]]``
+        including its newline.
+    line_kind : (n_lines,) int8
+        :class:`LineKind` of each line.
+    line_has_expr : (n_lines,) bool
+        The line holds a word whose value is an expression or parameter, or a
+        parameter assignment: its numbers are not known without evaluation.
+    word_line : (n_words,) int32
+        0-based line of each word, non-decreasing.
+    word_letter : (n_words,) uint8
+        Upper-case ASCII code of the word's letter (``ord('X')``).
+    word_value : (n_words,) float64
+        Numeric value; NaN where the value is an expression.
+    word_start, word_end : (n_words,) int64
+        Character span of the whole word (letter to last character of value).
+    word_num_start : (n_words,) int64
+        Character offset where the value text starts (after letter and blanks).
+    opaque_reason : dict[int, str]
+        For OPAQUE lines: why ncopt leaves the line alone (0-based line -> text).
+    line_exprs : dict[int, tuple]
+        For lines with expressions or assignments: the parsed items in order,
+        ``("word", word_start, tree)`` or ``("assign", param_tree, expr_tree)``,
+        evaluated by the interpreter.
+    """
+
+    path: str
+    text: str
+    line_start: np.ndarray
+    line_kind: np.ndarray
+    line_has_expr: np.ndarray
+    word_line: np.ndarray
+    word_letter: np.ndarray
+    word_value: np.ndarray
+    word_start: np.ndarray
+    word_end: np.ndarray
+    word_num_start: np.ndarray
+    opaque_reason: dict = field(default_factory=dict)
+    line_exprs: dict = field(default_factory=dict)
+
+    @property
+    def n_words(self) -> int:
+        return int(self.word_line.shape[0])
+
+    @property
+    def n_lines(self) -> int:
+        return int(self.line_kind.shape[0])
+
+    @property
+    def newline(self) -> str:
+        """The program's dominant line ending (``\\r\\n`` or ``\\n``)."""
+        first = self.text.find("\n")
+        return "\r\n" if first > 0 and self.text[first - 1] == "\r" else "\n"
+
+    def line_text(self, i: int) -> str:
+        """Text of 0-based line ``i`` without its line ending."""
+        return self.text[self.line_start[i] : self.line_start[i + 1]].rstrip("\r\n")
+
+
+@dataclass(frozen=True)
+class Toolpath:
+    """Cutter locations (CL points) of a program, one row per point.
+
+    Point 0 is the start position; point ``i > 0`` is the end of the move
+    ``i-1 -> i``.  Arcs are split into several points that all carry the same
+    ``line``.
+
+    Attributes
+    ----------
+    xyz_mm : (n, 3) float64
+        Programmed tool point (tip or centre, see Cutter) in mm, work coordinates.
+    line : (n,) int32
+        0-based source line of the move ending at each point (-1 for point 0).
+    motion : (n,) int8
+        :class:`Motion` of the move ending at each point.
+    feed_mm_min : (n,) float64
+        Programmed feed in force for that move, mm/min (NaN for rapids/unknown).
+    spindle_rpm : (n,) float64
+        Programmed S word value in force (whether or not the spindle runs), RPM
+        in the program's words (0 before any S).
+    seg_len_mm : (n,) float64
+        Exact length of the move ending at each point (arc length for arcs); 0 for point 0.
+    known : (n,) bool
+        False where the interpreter cannot know the position (after macros,
+        subprogram calls, expressions it cannot evaluate...): such moves are not planned.
+    tool : (n,) int32
+        Active tool number (-1 if none).
+    inch : bool
+        The program is in inches (G20) at its first move; words are written back in inch.
+    warnings : tuple[str, ...]
+        Located messages about lines left alone.
+    """
+
+    xyz_mm: np.ndarray
+    line: np.ndarray
+    motion: np.ndarray
+    feed_mm_min: np.ndarray
+    spindle_rpm: np.ndarray
+    seg_len_mm: np.ndarray
+    known: np.ndarray
+    tool: np.ndarray
+    line_inch: np.ndarray | None = None
+    spindle_on: np.ndarray | None = None
+    warnings: tuple = ()
+
+    def __post_init__(self) -> None:
+        n = self.xyz_mm.shape[0]
+        if self.xyz_mm.shape != (n, 3):
+            raise ValueError(f"xyz_mm must be (n, 3), got {self.xyz_mm.shape}")
+        for name in ("line", "motion", "feed_mm_min", "spindle_rpm", "seg_len_mm", "known", "tool"):
+            arr = getattr(self, name)
+            if arr.shape != (n,):
+                raise ValueError(f"{name} must be ({n},), got {arr.shape}")
+
+    @property
+    def n(self) -> int:
+        return int(self.xyz_mm.shape[0])
+
+
+@dataclass(frozen=True)
+class Cutter:
+    """A ball-end (corner_radius_mm == radius_mm) or bull-nose cutter.
+
+    Attributes
+    ----------
+    diameter_mm : float
+    corner_radius_mm : float
+        Torus tube radius r; equal to D/2 for a ball.
+    teeth : int
+    tool_point : str
+        ``"tip"`` (programmed point at the tool tip, the default of CAM posts) or ``"center"``.
+    """
+
+    diameter_mm: float
+    teeth: int
+    corner_radius_mm: float | None = None
+    tool_point: str = "tip"
+
+    def __post_init__(self) -> None:
+        if self.corner_radius_mm is None:
+            object.__setattr__(self, "corner_radius_mm", self.diameter_mm / 2.0)
+
+    @property
+    def radius_mm(self) -> float:
+        return self.diameter_mm / 2.0
+
+    @property
+    def is_ball(self) -> bool:
+        return abs(self.corner_radius_mm - self.radius_mm) < 1e-9
+
+
+@dataclass(frozen=True)
+class Contacts:
+    """Where the cutter touches the part, per sample point.
+
+    Attributes
+    ----------
+    cc_mm : (m, 3) float64
+        Cutter-contact (CC) points in mm.
+    normal : (m, 3) float64
+        Unit outward surface normal at the CC point, oriented toward the tool.
+    r_eff_mm : (m,) float64
+        Effective cutting radius: distance of the CC point from the tool axis.
+    cutting : (m,) bool
+        The cutter touches the part within tolerance at this sample.
+    """
+
+    cc_mm: np.ndarray
+    normal: np.ndarray
+    r_eff_mm: np.ndarray
+    cutting: np.ndarray
+
+
+@dataclass(frozen=True)
+class Machine:
+    """Spindle and axis limits of the machine.
+
+    accel_rad_s2 is the spindle acceleration as users state it (rad/s^2);
+    ``accel_rpm_s`` converts it (a = alpha * 60 / (2 pi)).
+    """
+
+    accel_rad_s2: float
+    max_rpm: float
+    min_rpm: float = 0.0
+    max_feed_mm_min: float = float("inf")
+    rapid_mm_min: float = 10000.0
+
+    @property
+    def accel_rpm_s(self) -> float:
+        return self.accel_rad_s2 * 60.0 / (2.0 * np.pi)
+
+
+@dataclass(frozen=True)
+class CuttingData:
+    """Targets: cutting speed vc (m/min) and feed per tooth fz (mm)."""
+
+    vc_m_min: float
+    fz_mm: float
+
+
+@dataclass(frozen=True)
+class PlanOptions:
+    """How the planner and rewriter behave.
+
+    planner : ``"lookahead"`` (default) or ``"forward"`` (the paper's flow chart)
+    min_rpm_step : emit S only when it changes by at least this many RPM
+    fz_tolerance : allowed relative fz drift inside a block while the spindle ramps
+    sample_mm : longest distance between contact samples along a block, mm
+    split : split long blocks into collinear pieces so F follows S
+    """
+
+    planner: str = "lookahead"
+    min_rpm_step: float = 10.0
+    fz_tolerance: float = 0.02
+    sample_mm: float = 1.0
+    split: bool = False
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Commanded spindle speed and feed per toolpath point (the move ending there).
+
+    Attributes
+    ----------
+    s_req_rpm : (n,) float64
+        Required spindle speed of each move (lowest along it); NaN if not cutting.
+    s_rpm : (n,) float64
+        Planned spindle speed in force during each move.
+    f_mm_min : (n,) float64
+        Planned feed of each move (NaN where the program's own feed stays).
+    planned : (n,) bool
+        The move's S/F are set by ncopt.
+    """
+
+    s_req_rpm: np.ndarray
+    s_rpm: np.ndarray
+    f_mm_min: np.ndarray
+    planned: np.ndarray
+
+
+@dataclass(frozen=True)
+class Edit:
+    """Replace ``text[start:end]`` by ``text``."""
+
+    start: int
+    end: int
+    text: str

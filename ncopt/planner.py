@@ -1,0 +1,273 @@
+"""Required speed -> spindle-limited S profile -> F per block.
+
+Works on *blocks* (source lines that move), because a control applies S and
+F per block.  Units: S in RPM, lengths in mm, F in mm/min, accelerations in
+RPM/s.  The constraint of METHOD.md, |d(S^2)/ds| <= K = 2*60*a/(fz*z), is
+applied per block as |S_b^2 - S_(b-1)^2| <= K*L_b, so the ramp of a block
+finishes inside it while F stays constant.
+
+Deviation from METHOD.md, and why: a block's speed S_b is applied at its
+start and the spindle ramps from S_(b-1) during the block, so the spindle
+runs between both values inside block b.  vc therefore stays at or below its
+target only if *both* are at most the block's requirement: the look-ahead
+cap of block b is min(req_b, req_(b+1)).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .model import CuttingData, Machine, PlanOptions
+
+MAX_ITERATIONS = 200
+
+
+@dataclass(frozen=True)
+class Blocks:
+    """The program's moving blocks in order, (nb,) arrays.
+
+    length_mm : path length of the block
+    req_rpm : lowest required spindle speed along the block (inf: no requirement)
+    cutting : the block cuts (has a requirement and is planned)
+    planned : ncopt may set the block's S/F
+    time_s : duration of non-cutting blocks at their own feed or the rapid rate
+    fixed_rpm : programmed S in force (used for blocks that are not planned)
+    """
+
+    length_mm: np.ndarray
+    req_rpm: np.ndarray
+    cutting: np.ndarray
+    planned: np.ndarray
+    time_s: np.ndarray
+    fixed_rpm: np.ndarray
+
+
+@dataclass(frozen=True)
+class Profile:
+    """Planned spindle speed per block (real-valued, before emission), RPM."""
+
+    s_rpm: np.ndarray
+    cap_rpm: np.ndarray
+    k_rpm2_per_mm: float
+
+
+def k_rpm2_per_mm(machine: Machine, cut: CuttingData, teeth: int) -> float:
+    """K = 2 * 60 * a / (fz z): the largest change of S^2 per mm of cut."""
+    return 2.0 * 60.0 * machine.accel_rpm_s / (cut.fz_mm * teeth)
+
+
+def speed_limits(machine: Machine, cut: CuttingData, teeth: int) -> tuple[float, float]:
+    """Lowest and highest S the plan may use: machine range and the F_max cap."""
+    s_hi = machine.max_rpm
+    if np.isfinite(machine.max_feed_mm_min):
+        s_hi = min(s_hi, machine.max_feed_mm_min / (cut.fz_mm * teeth))
+    return machine.min_rpm, s_hi
+
+
+def increments(blocks: Blocks, machine: Machine, k: float) -> tuple[np.ndarray, np.ndarray]:
+    """How far the spindle may change during each block.
+
+    Returns
+    -------
+    inc_s2 : (nb,) RPM^2, cutting blocks: K*L (inf elsewhere)
+    inc_s : (nb,) RPM, other blocks: a*T over their whole duration T (inf for cutting)
+    """
+    ramp = machine.accel_rpm_s * blocks.time_s
+    inc_s2 = np.where(blocks.cutting, k * blocks.length_mm, np.inf)
+    inc_s = np.where(blocks.cutting, np.inf, ramp)
+    return inc_s2, inc_s
+
+
+def caps(blocks: Blocks, s_lo: float, s_hi: float, lookahead: bool) -> np.ndarray:
+    """(nb,) upper bound on the commanded S of each block, RPM."""
+    req = np.clip(blocks.req_rpm, s_lo, s_hi)
+    cap = np.where(blocks.cutting, req, np.nan)
+    if lookahead:  # the spindle still runs at S_b during block b+1's ramp
+        nxt = np.concatenate((cap[1:], [np.nan]))
+        cap = np.where(blocks.cutting, np.fmin(cap, nxt), cap)
+    # non-cutting blocks head for the next cut's speed (then the last one's)
+    cap = _bfill(cap)
+    cap = _ffill(cap, s_hi)
+    fixed = ~blocks.planned
+    cap[fixed] = np.clip(blocks.fixed_rpm[fixed], 0.0, None)
+    return cap
+
+
+def lookahead(blocks: Blocks, machine: Machine, cut: CuttingData, teeth: int,
+              opts: PlanOptions) -> Profile:
+    """The largest profile under the caps that obeys the spindle limit both ways.
+
+    Forward and backward running minima in S^2 (``numpy.minimum.accumulate``),
+    alternated with the same passes in log S for the per-block speed ratio that
+    keeps the real fz within ``opts.fz_tolerance``; they converge to the
+    greatest profile that satisfies all constraints.
+    """
+    k = k_rpm2_per_mm(machine, cut, teeth)
+    s_lo, s_hi = speed_limits(machine, cut, teeth)
+    cap = caps(blocks, s_lo, s_hi, lookahead=True)
+    inc_s2, inc_s = increments(blocks, machine, k)
+    ratio_inc = np.where(blocks.cutting & blocks.planned,
+                         np.log(1.0 / (1.0 - opts.fz_tolerance)), np.inf)
+    s = cap.copy()
+    for _ in range(MAX_ITERATIONS):
+        before = s
+        s = np.sqrt(np.maximum(_two_way_min(s * s, inc_s2), 0.0))
+        s = np.minimum(s, _two_way_min(s, inc_s))
+        s = np.minimum(s, np.exp(_two_way_min(np.log(np.maximum(s, 1e-300)), ratio_inc)))
+        if np.allclose(s, before, rtol=1e-12, atol=1e-9):
+            break
+    s = np.maximum(s, np.minimum(s_lo, cap))
+    return Profile(s_rpm=s, cap_rpm=cap, k_rpm2_per_mm=k)
+
+
+def forward(blocks: Blocks, machine: Machine, cut: CuttingData, teeth: int,
+            opts: PlanOptions) -> Profile:
+    """The paper's flow chart: each block takes the required speed clipped to
+    what the spindle can reach from the previous block, both ways.
+
+    The recurrence ``x_b = clip(req_b, x_(b-1) - inc_b, x_(b-1) + inc_b)`` is
+    solved by vectorised sweeps: a rising pass (running minimum) and a falling
+    pass (running maximum) give a start inside the solution's envelope, then
+    Jacobi sweeps run to the exact fixed point.
+    """
+    k = k_rpm2_per_mm(machine, cut, teeth)
+    s_lo, s_hi = speed_limits(machine, cut, teeth)
+    cap = caps(blocks, s_lo, s_hi, lookahead=False)
+    inc_s2, inc_s = increments(blocks, machine, k)
+    # one S^2 budget per block: a non-cutting block's a*T taken at its cap (upper bound
+    # of the change in S^2 over it is (2 cap + aT) aT)
+    inc = np.where(np.isfinite(inc_s2), inc_s2, (2 * cap + inc_s) * inc_s)
+    x = forward_clip(cap * cap, inc)
+    return Profile(s_rpm=np.sqrt(np.maximum(x, 0.0)), cap_rpm=cap, k_rpm2_per_mm=k)
+
+
+def forward_clip(req: np.ndarray, inc: np.ndarray) -> np.ndarray:
+    """Solve x_b = clip(req_b, x_(b-1) - inc_b, x_(b-1) + inc_b), x_0 = req_0."""
+    n = req.shape[0]
+    if n == 0:
+        return req.copy()
+    cum = np.cumsum(np.where(np.isfinite(inc), inc, 0.0))
+    x = cum + np.minimum.accumulate(req - cum)  # rises limited
+    x = -cum + np.maximum.accumulate(x + cum)  # falls limited
+    for _ in range(n + 1):
+        prev = np.concatenate(([req[0]], x[:-1]))
+        new = np.clip(req, prev - inc, prev + inc)
+        new[0] = req[0]
+        if np.array_equal(new, x):
+            break
+        x = new
+    return x
+
+
+def _two_way_min(x: np.ndarray, inc: np.ndarray) -> np.ndarray:
+    """The largest y <= x with y_b <= y_(b-1) + inc_b and y_b <= y_(b+1) + inc_(b+1).
+
+    Both passes are running minima: forward ``y_b = C_b + min_(j<=b)(x_j - C_j)``,
+    backward ``y_b = -C_b + min_(j>=b)(y_j + C_j)`` with C the cumulative sum of
+    inc.  An infinite inc_b removes the constraint between b-1 and b: the sums
+    restart there (done with per-segment offsets, so still one accumulate).
+    """
+    n = x.shape[0]
+    if n == 0:
+        return x.copy()
+    brk = ~np.isfinite(inc)
+    brk[0] = True
+    seg = np.cumsum(brk) - 1
+    cum = np.cumsum(np.where(brk, 0.0, inc))
+    cum -= cum[np.flatnonzero(brk)][seg]
+    fwd = cum + _segment_running_min(x - cum, seg, reverse=False)
+    return -cum + _segment_running_min(fwd + cum, seg, reverse=True)
+
+
+def _segment_running_min(v: np.ndarray, seg: np.ndarray, reverse: bool) -> np.ndarray:
+    """Running minimum restarting at each new segment id (forward or backward)."""
+    if seg[-1] == 0:
+        return np.minimum.accumulate(v[::-1])[::-1] if reverse else np.minimum.accumulate(v)
+    big = 2.0 * (float(np.max(v) - np.min(v)) + 1.0)
+    off = seg * big if reverse else -seg * big  # earlier-scanned segments never win
+    if reverse:
+        return np.minimum.accumulate((v + off)[::-1])[::-1] - off
+    return np.minimum.accumulate(v + off) - off
+
+
+def _ffill(a: np.ndarray, initial: float) -> np.ndarray:
+    ok = ~np.isnan(a)
+    idx = np.where(ok, np.arange(a.shape[0]), -1)
+    np.maximum.accumulate(idx, out=idx)
+    return np.where(idx >= 0, a[np.maximum(idx, 0)], initial)
+
+
+def _bfill(a: np.ndarray) -> np.ndarray:
+    return _ffill(a[::-1], np.nan)[::-1]
+
+
+def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
+             s_lo: float) -> tuple[np.ndarray, np.ndarray]:
+    """Integer S commands per block, and the lowest real spindle speed in each block.
+
+    S changes only by at least ``opts.min_rpm_step`` and never rises above the
+    planned profile, so vc stays under its target.  The real spindle is
+    tracked: a rise may take several short blocks to complete (F then follows
+    the real, lower speed, so fz never exceeds its target), a fall always
+    completes inside its block (the plan's look-ahead made room for it), and
+    within one block the speed changes by at most the fz-band ratio.
+    This is a sequential hysteresis, one step per block.
+
+    Returns
+    -------
+    s_cmd : (nb,) commanded S, RPM (integers)
+    s_low : (nb,) lowest real spindle speed during each block, RPM
+    """
+    s_plan = profile.s_rpm.tolist()
+    inc_s2, inc_s = (a.tolist() for a in incs)
+    cutting = (blocks.cutting & blocks.planned).tolist()
+    fixed = (~blocks.planned).tolist()
+    fixed_rpm = blocks.fixed_rpm.tolist()
+    ratio = 1.0 / (1.0 - opts.fz_tolerance)
+    step = opts.min_rpm_step
+    lo_int = math.ceil(s_lo)
+    cmd_out, low_out = [0.0] * len(s_plan), [0.0] * len(s_plan)
+    cur = real = None
+    for b, target in enumerate(s_plan):
+        if fixed[b]:
+            cur = fixed_rpm[b]
+        elif cur is None:  # the spindle-start block brings the spindle to speed
+            cur = real = float(max(math.floor(target), lo_int))
+        else:
+            r = ratio if cutting[b] else math.inf
+            cur = _next_command(cur, real, target, inc_s2[b], inc_s[b], r, step)
+        start = cur if real is None else real
+        real = _ramp(start, cur, inc_s2[b], inc_s[b])
+        cmd_out[b], low_out[b] = cur, min(start, real)
+    return np.array(cmd_out), np.array(low_out)
+
+
+def _next_command(cur: float, real: float, target: float, inc_s2: float, inc_s: float,
+                  ratio: float, step: float) -> float:
+    if target >= cur + step:  # rise; the fz band bounds it by the real speed
+        up = math.floor(min(target, real * ratio))
+        return float(up) if up >= cur + step else cur
+    if target < cur:  # fall now, completely inside this block, with margin against chatter
+        reach = max(math.sqrt(max(real * real - inc_s2, 0.0)), real - inc_s)
+        low = math.ceil(max(reach, real / ratio, 0.0))
+        new = max(math.floor(target - step + 1), low)
+        return float(min(new, math.floor(target)) if low <= math.floor(target) else low)
+    return cur
+
+
+def _ramp(start: float, command: float, inc_s2: float, inc_s: float) -> float:
+    """Real speed at the end of a block: toward the command, S^2 moving by at most
+    inc_s2 (cutting) or S by at most inc_s (other blocks)."""
+    if command >= start:
+        return min(command, math.sqrt(start * start + inc_s2), start + inc_s)
+    return max(command, math.sqrt(max(start * start - inc_s2, 0.0)), start - inc_s)
+
+
+def feeds(s_low: np.ndarray, blocks: Blocks, cut: CuttingData, teeth: int,
+          max_feed_mm_min: float) -> np.ndarray:
+    """F per cutting block from the lowest real spindle speed in the block, mm/min."""
+    f = np.minimum(cut.fz_mm * teeth * s_low, max_feed_mm_min)
+    return np.where(blocks.cutting & blocks.planned, f, np.nan)

@@ -1,0 +1,210 @@
+"""Plan -> edits -> new text, spliced into the original.
+
+Splice, never re-print: every change is an :class:`~ncopt.model.Edit` of one
+S or F word (or an appended word), applied from the end backwards.  With no
+edits the output is the input, byte for byte.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections import Counter
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import VerificationError
+from .model import Edit, Program
+
+S_CODE, F_CODE = ord("S"), ord("F")
+
+
+@dataclass(frozen=True)
+class WordStyle:
+    """How the program writes a number: decimals, trailing point, separator."""
+
+    decimals: int = 0
+    trailing_point: bool = False
+    separator: str = " "
+    s_before_f: bool = True
+
+    def format(self, value: float) -> str:
+        if self.decimals == 0:
+            text = str(int(round(value)))
+            return text + "." if self.trailing_point else text
+        return f"{value:.{self.decimals}f}"
+
+    def quantize_down(self, value: float) -> float:
+        """Largest representable value <= value (so fz never exceeds its target)."""
+        scale = 10.0 ** self.decimals
+        return math.floor(value * scale + 1e-9) / scale
+
+
+_NUM = re.compile(r"[+-]?(\d*)(?:\.(\d*))?$")
+
+
+def detect_style(prog: Program, letter: int, default_decimals: int = 0) -> WordStyle:
+    """The most common way the program writes ``letter`` words, and its separator."""
+    sel = np.flatnonzero(prog.word_letter == letter)[:2000]
+    styles = Counter()
+    for w in sel.tolist():
+        text = prog.text[prog.word_num_start[w]:prog.word_end[w]]
+        m = _NUM.match(text.strip())
+        if not m:
+            continue
+        frac = m.group(2)
+        styles[(len(frac) if frac else 0, frac == "")] += 1
+    decimals, trailing = styles.most_common(1)[0][0] if styles else (default_decimals, False)
+    return WordStyle(decimals=decimals, trailing_point=trailing, separator=_separator(prog),
+                     s_before_f=_s_before_f(prog))
+
+
+def _separator(prog: Program) -> str:
+    """' ' if the program separates words by blanks, '' for ``N40G90X1.`` style."""
+    starts, ends = prog.word_start[:5000], prog.word_end[:5000]
+    same = prog.word_line[1:5000] == prog.word_line[:4999]
+    if not same.any():
+        return " "
+    gaps = starts[1:][same[: starts.shape[0] - 1]] - ends[:-1][same[: starts.shape[0] - 1]]
+    return " " if np.mean(gaps > 0) >= 0.5 else ""
+
+
+def _s_before_f(prog: Program) -> bool:
+    s_lines = prog.word_line[prog.word_letter == S_CODE]
+    f_lines = prog.word_line[prog.word_letter == F_CODE]
+    both = np.intersect1d(s_lines, f_lines)[:100]
+    if both.size == 0:
+        return True
+    votes = 0
+    for line in both.tolist():
+        sel = prog.word_line == line
+        s_pos = prog.word_start[sel & (prog.word_letter == S_CODE)][0]
+        f_pos = prog.word_start[sel & (prog.word_letter == F_CODE)][0]
+        votes += 1 if s_pos < f_pos else -1
+    return votes >= 0
+
+
+@dataclass(frozen=True)
+class Targets:
+    """What the rewritten program must have in force at each block.
+
+    line : (nb,) int, source line of each moving block, increasing
+    s_value : (nb,) float, spindle speed to be in force (NaN: don't care)
+    f_value : (nb,) float, feed in program units to be in force (NaN: don't care)
+    """
+
+    line: np.ndarray
+    s_value: np.ndarray
+    f_value: np.ndarray
+
+
+def plan_edits(prog: Program, targets: Targets, s_style: WordStyle,
+               f_style: WordStyle) -> list[Edit]:
+    """Edits that make S and F in force equal the targets, word by word."""
+    edits = []
+    appended: dict[int, list] = {}
+    for code, values, style in ((S_CODE, targets.s_value, s_style),
+                                (F_CODE, targets.f_value, f_style)):
+        edits += _replace_words(prog, code, targets.line, values, style)
+        for line, text in _append_words(prog, code, targets.line, values, style):
+            appended.setdefault(line, []).append((code, text))
+    edits += _insertions(prog, appended, s_style)
+    return edits
+
+
+def _consumers(line: np.ndarray, values: np.ndarray):
+    use = ~np.isnan(values)
+    return line[use], values[use]
+
+
+def _replace_words(prog, code, line, values, style) -> list[Edit]:
+    """Existing words take the target of the first consumer at or after them."""
+    c_line, c_val = _consumers(line, values)
+    words = np.flatnonzero(prog.word_letter == code)
+    if words.size == 0 or c_line.size == 0:
+        return []
+    nxt = np.searchsorted(c_line, prog.word_line[words], side="left")
+    ok = nxt < c_line.shape[0]
+    edits = []
+    for w, j in zip(words[ok].tolist(), nxt[ok].tolist()):
+        new = c_val[j]
+        old = prog.word_value[w]
+        if not math.isnan(old) and _same_formatted(np.array([old]), np.array([new]), style)[0]:
+            continue
+        start = int(prog.word_num_start[w])
+        edits.append(Edit(start, int(prog.word_end[w]), style.format(new)))
+    return edits
+
+
+def _append_words(prog, code, line, values, style):
+    """Consumers whose target differs from what is in force get a new word."""
+    c_line, c_val = _consumers(line, values)
+    if c_line.size == 0:
+        return []
+    w_lines = np.unique(prog.word_line[prog.word_letter == code])
+    # words on or before each consumer, and on or before the previous consumer
+    upto = np.searchsorted(w_lines, c_line, side="right")
+    prev_upto = np.concatenate(([0], upto[:-1]))
+    own = np.isin(c_line, w_lines)
+    between = upto > prev_upto  # a word since the previous consumer sets our value
+    prev_val = np.concatenate(([np.nan], c_val[:-1]))
+    same = _same_formatted(c_val, prev_val, style)
+    need = ~own & ~between & ~same
+    return [(int(li), style.format(v)) for li, v in zip(c_line[need], c_val[need])]
+
+
+def _same_formatted(a: np.ndarray, b: np.ndarray, style: WordStyle) -> np.ndarray:
+    """Would a and b be written the same (to the style's precision)?"""
+    scale = 10.0 ** style.decimals
+    with np.errstate(invalid="ignore"):
+        return (np.round(a * scale) == np.round(b * scale)) & ~np.isnan(a) & ~np.isnan(b)
+
+
+def _insertions(prog, appended, style) -> list[Edit]:
+    """New words go after the last word of their line, S before F unless the post differs."""
+    if not appended:
+        return []
+    lines = np.array(sorted(appended))
+    last_word = np.searchsorted(prog.word_line, lines, side="right") - 1
+    edits = []
+    for li, w in zip(lines.tolist(), last_word.tolist()):
+        words = sorted(appended[li], key=lambda cw: (cw[0] != S_CODE) == style.s_before_f)
+        text = "".join(f"{style.separator}{chr(c)}{t}" for c, t in words)
+        at = int(prog.word_end[w]) if w >= 0 and prog.word_line[w] == li \
+            else int(prog.line_start[li])
+        edits.append(Edit(at, at, text))
+    return edits
+
+
+def apply_edits(text: str, edits: list[Edit]) -> str:
+    """Splice edits into text (non-overlapping; insertions at one point keep order)."""
+    if not edits:
+        return text
+    ordered = sorted(edits, key=lambda e: (e.start, e.end))
+    parts, pos = [], 0
+    for e in ordered:
+        if e.start < pos:
+            raise VerificationError(f"overlapping edits at offset {e.start}")
+        parts.append(text[pos:e.start])
+        parts.append(e.text)
+        pos = e.end
+    parts.append(text[pos:])
+    return "".join(parts)
+
+
+def masked(prog: Program) -> str:
+    """The program text with every S and F word (and the blanks before it) removed."""
+    sel = np.flatnonzero((prog.word_letter == S_CODE) | (prog.word_letter == F_CODE))
+    if sel.size == 0:
+        return prog.text
+    text = prog.text
+    parts, pos = [], 0
+    for w in sel.tolist():
+        start = int(prog.word_start[w])
+        while start > pos and text[start - 1] in " \t":
+            start -= 1
+        parts.append(text[pos:start])
+        pos = int(prog.word_end[w])
+    parts.append(text[pos:])
+    return "".join(parts)

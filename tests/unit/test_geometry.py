@@ -1,0 +1,279 @@
+"""Contacts from a mesh (ncopt.geometry): closed forms, STL reading, the pool."""
+
+from __future__ import annotations
+
+import multiprocessing
+
+import numpy as np
+import pytest
+from scipy.spatial import ConvexHull
+from stl import Mode
+from stl import mesh as stl_mesh
+
+from ncopt import geometry
+from ncopt.errors import MeshError
+from ncopt.geometry import Mesh, MeshIndex, contacts_from_mesh, load_stl, mesh_contacts
+from ncopt.model import Cutter
+
+BALL = Cutter(diameter_mm=8.0, teeth=2)
+BULL = Cutter(diameter_mm=16.0, teeth=2, corner_radius_mm=2.0)
+
+
+# ---------------------------------------------------------------- test meshes
+
+
+def grid_mesh(xs: np.ndarray, ys: np.ndarray, z_of_x) -> Mesh:
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    V = np.c_[X.ravel(), Y.ravel(), z_of_x(X.ravel())]
+    nx, ny = len(xs), len(ys)
+    i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1), indexing="ij")
+    a = (i * ny + j).ravel()
+    F = np.concatenate([np.c_[a, a + ny, a + ny + 1], np.c_[a, a + ny + 1, a + 1]])
+    return Mesh(V, F)
+
+
+def plane_mesh(tilt_deg: float) -> Mesh:
+    """Plane through the origin, normal (sin a, 0, cos a): rises toward -X."""
+    t = np.tan(np.radians(tilt_deg))
+    xs = np.linspace(-20.0, 20.0, 9)
+    return grid_mesh(xs, xs, lambda x: -t * x)
+
+
+def plane_normal(tilt_deg: float) -> np.ndarray:
+    a = np.radians(tilt_deg)
+    return np.array([np.sin(a), 0.0, np.cos(a)])
+
+
+def sphere_mesh(radius_mm: float, n: int) -> Mesh:
+    """Closed sphere: convex hull of Fibonacci points, faces wound outward."""
+    k = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * k / n
+    phi = np.pi * (1.0 + 5**0.5) * k
+    P = radius_mm * np.c_[np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z]
+    F = ConvexHull(P).simplices.astype(np.int64)
+    normal = np.cross(P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]])
+    inward = (normal * P[F].mean(axis=1)).sum(axis=1) < 0
+    F[inward] = F[inward][:, ::-1]
+    return Mesh(P, F)
+
+
+def directions(n: int, seed: int = 0, max_tilt_deg: float = 80.0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    tilt = np.radians(rng.uniform(0, max_tilt_deg, n))
+    az = rng.uniform(0, 2 * np.pi, n)
+    return np.c_[np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.cos(tilt)]
+
+
+def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.degrees(np.arccos(np.clip((a * b).sum(axis=1), -1.0, 1.0)))
+
+
+@pytest.fixture(scope="module")
+def sphere_index() -> MeshIndex:
+    return MeshIndex(sphere_mesh(20.0, 3000))
+
+
+# ---------------------------------------------------------------- closed forms
+
+
+def test_ball_on_horizontal_plane_touches_at_the_tip():
+    index = MeshIndex(plane_mesh(0.0))
+    centres = np.array([[1.3, -2.1, 4.0], [0.0, 0.0, 4.0]])
+    c = contacts_from_mesh(centres, index, BALL)
+    np.testing.assert_allclose(c.normal, [[0, 0, 1]] * 2, atol=1e-12)
+    np.testing.assert_allclose(c.r_eff_mm, 0.0, atol=1e-6)
+    np.testing.assert_allclose(c.cc_mm, centres - [0, 0, 4.0], atol=1e-12)
+    assert c.cutting.all()
+
+
+@pytest.mark.parametrize("normals", geometry.NORMAL_METHODS)
+def test_ball_on_45_degree_plane(normals):
+    index = MeshIndex(plane_mesh(45.0))
+    n = plane_normal(45.0)
+    p = np.array([[2.0, 1.0, -2.0], [-3.5, 4.2, 3.5]])
+    c = contacts_from_mesh(p + 4.0 * n, index, BALL, normals=normals)
+    np.testing.assert_allclose(c.r_eff_mm, 4.0 / np.sqrt(2.0), rtol=1e-9)
+    np.testing.assert_allclose(c.normal, [n, n], atol=1e-9)
+    np.testing.assert_allclose(c.cc_mm, p, atol=1e-9)
+
+
+def test_sphere_contact_normal_is_radial(sphere_index):
+    u = directions(400)
+    centres = (20.0 + 4.0) * u
+    smooth = mesh_contacts(centres, sphere_index, BALL)
+    center = mesh_contacts(centres, sphere_index, BALL, normals="center")
+    # 3000 vertices on a 20 mm sphere: edges ~1.4 mm, facets ~4 deg apart
+    err = angle_deg(smooth.contacts.normal, u)
+    assert np.median(err) < 0.03 and np.max(err) < 0.25
+    assert np.max(angle_deg(center.contacts.normal, u)) < 3.0
+    assert smooth.contacts.cutting.all() and smooth.n_gouging == 0
+
+
+def test_smoothing_beats_the_facets_on_a_coarse_sphere(sphere_index):
+    u = directions(400, seed=1)
+    centres = 28.0 * u
+    err = {how: np.median(angle_deg(contacts_from_mesh(centres, sphere_index, Cutter(16.0, 2),
+                                                       normals=how).normal, u))
+           for how in ("facet", "center", "smooth")}
+    assert err["smooth"] < 0.2 * err["center"] < err["facet"]
+
+
+def test_bull_nose_on_horizontal_plane_cuts_at_the_flat_radius():
+    index = MeshIndex(plane_mesh(0.0))
+    centres = np.array([[1.0, 2.0, 2.0]])  # core circle 2 mm (= r) above the plane
+    mc = mesh_contacts(centres, index, BULL)
+    np.testing.assert_allclose(mc.contacts.r_eff_mm, 8.0 - 2.0)
+    np.testing.assert_allclose(mc.contacts.cc_mm, [[1.0, 2.0, 0.0]], atol=1e-12)
+    assert mc.contacts.cutting.all() and abs(mc.gap_mm[0]) < 1e-12
+
+
+def test_bull_nose_on_30_degree_slope():
+    index = MeshIndex(plane_mesh(30.0))
+    n = plane_normal(30.0)
+    p = np.array([[1.0, 0.5, -np.tan(np.radians(30.0))]])
+    # contact on the rising side: core point p + r n, core centre R - r beyond it
+    centres = p + 2.0 * n + 6.0 * np.array([1.0, 0.0, 0.0])
+    mc = mesh_contacts(centres, index, BULL)
+    np.testing.assert_allclose(mc.contacts.r_eff_mm, 6.0 + 2.0 * 0.5, rtol=1e-9)
+    np.testing.assert_allclose(mc.contacts.cc_mm, p, atol=1e-9)
+    np.testing.assert_allclose(mc.contacts.normal, [n], atol=1e-9)
+    assert mc.contacts.cutting.all() and abs(mc.gap_mm[0]) < 1e-9
+
+
+def test_air_gouge_and_stock():
+    index = MeshIndex(plane_mesh(0.0))
+    centres = np.array([[0, 0, 5.0], [0, 0, 4.02], [0, 0, 3.5], [0, 0, 4.2]])
+    mc = mesh_contacts(centres, index, BALL, tol_mm=0.05)
+    np.testing.assert_allclose(mc.gap_mm, [1.0, 0.02, -0.5, 0.2], atol=1e-12)
+    assert mc.contacts.cutting.tolist() == [False, True, True, False]
+    assert mc.gouging.tolist() == [False, False, True, False]
+    assert mc.n_gouging == 1
+    with_stock = mesh_contacts(centres, index, BALL, tol_mm=0.05, stock_mm=0.2)
+    assert with_stock.contacts.cutting.tolist() == [False, True, True, True]
+
+
+def test_ball_rolling_over_a_sharp_edge_takes_the_centre_direction():
+    t = np.tan(np.radians(50.0))
+    index = MeshIndex(grid_mesh(np.linspace(-8, 8, 9), np.linspace(-8, 8, 9),
+                                lambda x: np.where(x < 0, 0.0, -t * x)))
+    phi = np.radians([5.0, 25.0, 45.0])
+    n = np.c_[np.sin(phi), 0 * phi, np.cos(phi)]
+    c = contacts_from_mesh(4.0 * n + [0.0, 1.5, 0.0], index, BALL)
+    np.testing.assert_allclose(c.normal, n, atol=1e-9)
+    np.testing.assert_allclose(c.r_eff_mm, 4.0 * np.sin(phi), atol=1e-9)
+
+
+def test_inconsistent_winding_still_gives_normals_toward_the_tool():
+    mesh = plane_mesh(0.0)
+    F = mesh.F.copy()
+    F[::2] = F[::2, ::-1]
+    index = MeshIndex(Mesh(mesh.V, F))
+    for how in geometry.NORMAL_METHODS:
+        c = contacts_from_mesh(np.array([[0.3, 0.7, 4.0], [-5, 2, 4.0]]), index, BALL, normals=how)
+        np.testing.assert_allclose(c.normal, [[0, 0, 1]] * 2, atol=1e-9)
+
+
+def test_empty_and_bad_input(sphere_index):
+    c = contacts_from_mesh(np.zeros((0, 3)), sphere_index, BALL)
+    assert c.cc_mm.shape == (0, 3) and c.r_eff_mm.shape == (0,) and c.cutting.shape == (0,)
+    with pytest.raises(ValueError, match=r"\(m, 3\)"):
+        contacts_from_mesh(np.zeros((4, 2)), sphere_index, BALL)
+    with pytest.raises(ValueError, match="non-finite"):
+        contacts_from_mesh(np.array([[0.0, np.nan, 30.0]]), sphere_index, BALL)
+    with pytest.raises(ValueError, match="normals"):
+        contacts_from_mesh(np.zeros((1, 3)), sphere_index, BALL, normals="vertex")
+
+
+# ---------------------------------------------------------------- chunks and the pool
+
+
+def test_chunks_keep_query_order(sphere_index):
+    points = 30.0 * directions(101, seed=3)
+    whole = sphere_index.closest(points)
+    chunked = MeshIndex(sphere_index.mesh, chunk_points=7).closest(points)
+    for a, b in zip(whole, chunked):
+        np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.skipif("fork" not in multiprocessing.get_all_start_methods(),
+                    reason="the pool needs the fork start method")
+def test_pool_gives_exactly_the_serial_answers(sphere_index):
+    centres = 24.0 * directions(1000, seed=4)
+    pooled_index = MeshIndex(sphere_index.mesh, pool_min_points=10, chunk_points=64,
+                             processes=2)
+    serial_index = MeshIndex(sphere_index.mesh, pool_min_points=10**9, chunk_points=64)
+    for a, b in zip(pooled_index.closest(centres), serial_index.closest(centres)):
+        np.testing.assert_array_equal(a, b)
+    pooled = contacts_from_mesh(centres, pooled_index, BALL)
+    serial = contacts_from_mesh(centres, serial_index, BALL)
+    np.testing.assert_array_equal(pooled.normal, serial.normal)
+    np.testing.assert_array_equal(pooled.r_eff_mm, serial.r_eff_mm)
+
+
+# ---------------------------------------------------------------- STL and mesh
+
+
+def save_stl(mesh: Mesh, path, mode: Mode) -> None:
+    m = stl_mesh.Mesh(np.zeros(mesh.F.shape[0], dtype=stl_mesh.Mesh.dtype))
+    m.vectors[:] = mesh.V[mesh.F]
+    m.save(str(path), mode=mode)
+
+
+def test_binary_and_ascii_stl_load_the_same_mesh(tmp_path):
+    mesh = grid_mesh(np.arange(5.0), np.arange(4.0), lambda x: 0.5 * x)
+    save_stl(mesh, tmp_path / "part_bin.stl", Mode.BINARY)
+    save_stl(mesh, tmp_path / "part_ascii.stl", Mode.ASCII)
+    assert (tmp_path / "part_ascii.stl").read_bytes().startswith(b"solid")
+    binary, ascii_ = load_stl(tmp_path / "part_bin.stl"), load_stl(tmp_path / "part_ascii.stl")
+    assert binary.V.shape == (20, 3) and binary.F.shape == (24, 3)  # shared corners merged
+    np.testing.assert_array_equal(binary.V, ascii_.V)
+    np.testing.assert_array_equal(binary.F, ascii_.F)
+    # the same triangles as written, up to vertex numbering
+    key = lambda m: np.sort(m.V[m.F].reshape(len(m.F), -1), axis=0)  # noqa: E731
+    np.testing.assert_array_equal(key(binary), key(mesh))
+
+
+def test_ascii_stl_with_several_solids_loads_them_all(tmp_path):
+    mesh = grid_mesh(np.arange(3.0), np.arange(3.0), lambda x: 0 * x)
+    save_stl(mesh, tmp_path / "a.stl", Mode.ASCII)
+    text = (tmp_path / "a.stl").read_bytes()
+    lifted = text.replace(b" 0\n", b" 5\n")  # the z of every vertex line
+    assert lifted != text
+    (tmp_path / "two.stl").write_bytes(text + lifted)
+    both = load_stl(tmp_path / "two.stl")
+    assert both.F.shape == (16, 3)
+    assert sorted(set(both.V[:, 2])) == [0.0, 5.0]
+
+
+@pytest.mark.parametrize("content", [
+    b"hello, not a mesh\n",
+    b"",
+    b"solid part\n  facet normal 0 0 1\n    outer loop\n      vertex 0 0 0\n      vertex 1 x 0\n",
+    b"\0" * 80 + (1000).to_bytes(4, "little") + b"\0" * 120,
+])
+def test_bad_stl_raises_mesh_error_naming_the_file(tmp_path, content):
+    path = tmp_path / "broken part.stl"
+    path.write_bytes(content)
+    with pytest.raises(MeshError) as err:
+        load_stl(path)
+    assert err.value.path == str(path)
+    assert str(err.value).startswith(f"{path}: ")
+
+
+def test_missing_stl_raises_mesh_error(tmp_path):
+    with pytest.raises(MeshError, match="no such file"):
+        load_stl(tmp_path / "nope.stl")
+
+
+def test_mesh_checks_shapes_and_indices():
+    with pytest.raises(ValueError, match="F refers"):
+        Mesh(np.zeros((3, 3)), np.array([[0, 1, 3]]))
+    with pytest.raises(ValueError, match=r"V must be"):
+        Mesh(np.zeros((3, 2)), np.array([[0, 1, 2]]))
+
+
+def test_mesh_resolution_of_a_unit_grid():
+    res = geometry.mesh_resolution_mm(grid_mesh(np.arange(6.0), np.arange(6.0), lambda x: 0 * x))
+    assert res.median_mm == pytest.approx(1.0)
+    assert res.max_mm == pytest.approx(np.sqrt(2.0))
+    assert 1.0 <= res.p95_mm <= np.sqrt(2.0)
