@@ -19,6 +19,7 @@ from .geometry import MeshIndex, contacts_from_mesh, load_stl, mesh_resolution_m
 from .interp import interpret
 from .model import Contacts, Cutter, CuttingData, Machine, Motion, PlanOptions, Program, Toolpath
 from .parse import parse_text
+from .pathnormals import NO_CROSS, ONE_SIDED, contacts_from_path
 from .rewrite import F_CODE, S_CODE, Targets, apply_edits, detect_style, masked, plan_edits
 from .tools import center_offset_mm, required_rpm
 
@@ -56,6 +57,10 @@ class Summary:
     max_s_rpm: float
     mesh_edge_mm: float | None = None
     warnings: tuple = ()
+    normals_from: str = "mesh"
+    stepover_mm: float | None = None
+    one_sided_points: int = 0
+    no_cross_points: int = 0
 
     @property
     def time_change_pct(self) -> float:
@@ -93,12 +98,13 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     """Rewrite a program's S and F words; every other byte stays as it is."""
     prog = parse_text(text, path)
     tp = interpret(prog)
-    if mesh_index is None:
-        raise UsageError("a part mesh is needed to find the contact points; give --mesh PART.stl",
-                         path)
     selected = _selected_moves(tp, job, path)
     cut = job.cutting or nominal_cutting_data(tp, selected, job.cutter, path)
-    contacts, sample_point = _contacts(tp, job, mesh_index)
+    if mesh_index is not None:
+        contacts, sample_point = _contacts(tp, job, mesh_index)
+        estimate = None
+    else:
+        contacts, sample_point, estimate = _contacts_without_mesh(tp, job, selected)
     blocks, block_line, first_point = build_blocks(tp, contacts, sample_point, selected, cut,
                                                    job)
     s_cmd, f_mm = plan_blocks(blocks, job, cut)
@@ -113,6 +119,11 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
         verify(prog, tp, out, targets, s_style, f_style)
     summary = _summary(prog, tp, blocks, block_line, first_point, s_cmd, f_mm, cut, edits,
                        mesh_index, targets)
+    if estimate is not None:
+        summary = replace(summary, normals_from="toolpath", stepover_mm=estimate.stepover_mm,
+                          one_sided_points=int(np.sum(estimate.confidence == ONE_SIDED)),
+                          no_cross_points=int(np.sum((estimate.confidence == NO_CROSS)
+                                                     & contacts.cutting)))
     return Result(out, summary, prog, tp, blocks, block_line, s_cmd, f_mm,
                   {"contacts": contacts, "sample_point": sample_point, "cutting": cut})
 
@@ -135,18 +146,28 @@ def _selected_moves(tp: Toolpath, job: Job, path: str) -> np.ndarray:
 
 def nominal_cutting_data(tp: Toolpath, selected: np.ndarray, cutter: Cutter,
                          path: str) -> CuttingData:
-    """vc and fz the program itself runs at its nominal diameter (what the CAM intended)."""
-    idx = np.flatnonzero(selected)
+    """vc and fz the program itself runs at its nominal diameter (what the CAM intended).
+
+    S and F are the length-weighted medians over the feed moves ncopt plans, so a
+    plunge or lead-in feed does not set the target of the whole finish.
+    """
+    idx = np.flatnonzero(selected & (tp.spindle_rpm > 0) & (tp.feed_mm_min > 0))
     if idx.size == 0:
-        raise PlanningError("no feed moves with a running spindle and a known position; "
-                            "nothing to plan", path)
-    s = float(tp.spindle_rpm[idx[0]])
-    f = float(tp.feed_mm_min[idx[0]])
-    if not s > 0 or not f > 0:
-        raise PlanningError("the program gives no spindle speed or feed for its first cut; "
+        raise PlanningError("the program gives no spindle speed or feed for its cuts; "
                             "give --vc and --fz", path)
+    weight = tp.seg_len_mm[idx]
+    s = _weighted_median(tp.spindle_rpm[idx], weight)
+    f = _weighted_median(tp.feed_mm_min[idx], weight)
     vc = np.pi * cutter.diameter_mm * s / 1000.0
     return CuttingData(vc_m_min=vc, fz_mm=f / (cutter.teeth * s))
+
+
+def _weighted_median(values: np.ndarray, weight: np.ndarray) -> float:
+    order = np.argsort(values, kind="stable")
+    cum = np.cumsum(weight[order])
+    if cum[-1] <= 0:
+        return float(values[order][len(values) // 2])
+    return float(values[order][np.searchsorted(cum, 0.5 * cum[-1])])
 
 
 def sample_points(tp: Toolpath, sample_mm: float) -> tuple[np.ndarray, np.ndarray]:
@@ -171,6 +192,31 @@ def _contacts(tp: Toolpath, job: Job, mesh_index: MeshIndex) -> tuple[Contacts, 
     xyz, point = sample_points(tp, job.options.sample_mm)
     centers = xyz + np.array([0.0, 0.0, center_offset_mm(job.cutter)])
     return contacts_from_mesh(centers, mesh_index, job.cutter, tol_mm=job.contact_tol_mm), point
+
+
+def air_moves(tp: Toolpath) -> np.ndarray:
+    """(n,) bool: feed moves that cannot be cutting without a mesh to say otherwise:
+    plunges and retracts (nearly vertical), and moves at or above the lowest rapid
+    height that follows a retract (the clearance plane)."""
+    d = np.diff(tp.xyz_mm, axis=0)
+    length = np.linalg.norm(d, axis=1)
+    steep = np.concatenate(([False], np.abs(d[:, 2]) > 0.98 * np.maximum(length, 1e-12)))
+    rapid_z = tp.xyz_mm[tp.motion == Motion.RAPID, 2]
+    clear = np.zeros(tp.n, dtype=bool)
+    if rapid_z.size:
+        clear = tp.xyz_mm[:, 2] >= np.min(rapid_z) - 1e-6
+    start_z = np.concatenate(([np.inf], tp.xyz_mm[:-1, 2]))
+    return steep | (clear & (start_z >= np.min(rapid_z) - 1e-6 if rapid_z.size else clear))
+
+
+def _contacts_without_mesh(tp: Toolpath, job: Job, selected: np.ndarray):
+    """Contacts at the CL points from the toolpath's own shape (no interior samples:
+    normals between two points are their interpolation)."""
+    centers = tp.xyz_mm + np.array([0.0, 0.0, center_offset_mm(job.cutter)])
+    path = np.cumsum(tp.seg_len_mm)
+    cutting = selected & ~air_moves(tp)
+    contacts, estimate = contacts_from_path(centers, path, cutting, job.cutter)
+    return contacts, np.arange(tp.n), estimate
 
 
 def build_blocks(tp: Toolpath, contacts: Contacts, sample_point: np.ndarray,

@@ -55,7 +55,8 @@ def rewrite(
     input: str = typer.Argument(..., help="NC program to rewrite, or - for stdin."),
     output: Optional[str] = typer.Option(None, "-o", "--output",
                                          help="Where to write; - or omitted: stdout."),
-    mesh: Path = typer.Option(..., "--mesh", help="Part mesh (STL, binary or ASCII), mm."),
+    mesh: Optional[Path] = typer.Option(None, "--mesh", help="Part mesh (STL, binary or "
+                                        "ASCII), mm. Without it, normals come from the toolpath."),
     diameter: float = typer.Option(..., "--diameter", help="Cutter diameter D, mm."),
     corner_radius: Optional[float] = typer.Option(None, "--corner-radius",
                                                   help="Bull-nose corner radius r, mm (default: ball)."),
@@ -149,6 +150,13 @@ def _print_summary(s: Summary) -> None:
               f"{s.cut_time_after_min:.1f} min ({s.time_change_pct:+.1f} %)")
     if s.mesh_edge_mm is not None:
         err.print(f"ncopt: mesh median edge {s.mesh_edge_mm:.2f} mm")
+    if s.normals_from == "toolpath":
+        err.print(f"ncopt: no mesh: normals from the toolpath (stepover {s.stepover_mm:.2f} mm); "
+                  f"{s.one_sided_points} points at the edge of the machined area planned "
+                  "conservatively")
+        if s.no_cross_points:
+            err.print(f"ncopt: {s.no_cross_points} cutting points have no neighbouring pass: "
+                      "their cross-slope is unknown and taken as zero")
     for w in s.warnings[:10]:
         err.print(f"warning: {w}", markup=False)
     if len(s.warnings) > 10:

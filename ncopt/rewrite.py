@@ -132,7 +132,8 @@ def _replace_words(prog, code, line, values, style) -> list[Edit]:
         old = prog.word_value[w]
         if not math.isnan(old) and _same_formatted(np.array([old]), np.array([new]), style)[0]:
             continue
-        start = int(prog.word_num_start[w])
+        # an expression value ([#<fscale>*225], #1) is replaced whole, after the letter
+        start = int(prog.word_start[w]) + 1 if math.isnan(old) else int(prog.word_num_start[w])
         edits.append(Edit(start, int(prog.word_end[w]), style.format(new)))
     return edits
 

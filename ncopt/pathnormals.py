@@ -1,0 +1,156 @@
+"""Contact normals from the toolpath alone, for programs that come without a mesh.
+
+The surface traced by the cutter centre is an offset of the part surface, so it
+has the same normals.  At every cutter-centre point:
+
+* the along-pass tangent ``t`` comes from its neighbours on the path;
+* the cross-slope comes from nearby points on *other* passes: neighbours from a
+  k-d tree (scipy's cKDTree) whose distance along the path is much larger than
+  their straight distance;
+* the normal is the unit vector perpendicular to ``t`` that best fits the
+  offsets to those neighbours (a weighted 2x2 least-squares problem, solved in
+  closed form for all points at once), oriented toward the tool (+Z).
+
+Where neighbours lie on one side only (the first and last pass, the edge of
+the machined area) the fit is one-sided and a curved surface tilts it: such
+points get a lower confidence, and the planner makes them conservative.  Where
+no other pass is near (a single 2D profile) the cross-slope cannot be known:
+it is taken as zero and reported.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .model import Contacts, Cutter
+from .tools import r_eff_mm
+
+K_NEIGHBOURS = 24
+OTHER_PASS_RATIO = 3.0  # path distance > ratio * straight distance: another pass
+CONFIDENT, ONE_SIDED, NO_CROSS = 2, 1, 0
+# A one-sided fit on a curved surface tilts the normal by about half the stepover
+# times the curvature; planning takes the normal this much steeper (a larger
+# R_eff, a lower required speed), so vc stays under its target there.
+ONE_SIDED_TILT_DEG = 3.0
+
+
+@dataclass(frozen=True)
+class PathNormals:
+    """Normals per point and how far to trust them.
+
+    normal : (m, 3) unit normals toward the tool
+    confidence : (m,) int8, CONFIDENT (passes on both sides), ONE_SIDED, NO_CROSS
+    stepover_mm : median distance to the nearest other pass (nan if none)
+    """
+
+    normal: np.ndarray
+    confidence: np.ndarray
+    stepover_mm: float
+
+
+def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarray,
+                 k: int = K_NEIGHBOURS, workers: int = -1) -> PathNormals:
+    """Estimate surface normals at cutter-centre points.
+
+    Parameters
+    ----------
+    centers_mm : (m, 3) cutter centres in path order, mm
+    path_mm : (m,) cumulative path length at each point, mm
+    cutting : (m,) bool, points on cutting moves (only these are neighbours)
+    """
+    m = centers_mm.shape[0]
+    normal = np.tile([0.0, 0.0, 1.0], (m, 1))
+    confidence = np.zeros(m, dtype=np.int8)
+    idx = np.flatnonzero(cutting)
+    if idx.size < 2:
+        return PathNormals(normal, confidence, float("nan"))
+    pts, s = centers_mm[idx], path_mm[idx]
+    tangent = _tangents(pts, s)
+    tree = cKDTree(pts)
+    kk = min(k + 1, idx.size)
+    dist, nb = tree.query(pts, k=kk, workers=workers)
+    dist, nb = np.atleast_2d(dist)[:, 1:], np.atleast_2d(nb)[:, 1:]
+    other = np.abs(s[nb] - s[:, None]) > OTHER_PASS_RATIO * dist + 1e-9
+    n, conf, stepover = _fit_cross(pts, tangent, nb, dist, other)
+    normal[idx] = n
+    confidence[idx] = conf
+    return PathNormals(normal, confidence, stepover)
+
+
+def _tangents(pts: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Unit along-path tangents: central differences, one-sided at breaks."""
+    d = np.diff(pts, axis=0)
+    seg = np.linalg.norm(d, axis=1)
+    jump = np.abs(np.diff(s) - seg) > 1e-6  # not consecutive on the path
+    unit = d / np.maximum(seg, 1e-12)[:, None]
+    unit[jump | (seg < 1e-9)] = np.nan
+    before = np.vstack((unit[:1] * np.nan, unit))
+    after = np.vstack((unit, unit[:1] * np.nan))
+    t = np.nan_to_num(before) + np.nan_to_num(after)
+    norm = np.linalg.norm(t, axis=1)
+    t /= np.maximum(norm, 1e-12)[:, None]
+    t[norm < 1e-9] = [1.0, 0.0, 0.0]
+    return t
+
+
+def _fit_cross(pts, tangent, nb, dist, other):
+    """Normal perpendicular to the tangent fitting the other-pass neighbours."""
+    up = np.array([0.0, 0.0, 1.0])
+    u = np.cross(tangent, up)  # horizontal, across the pass
+    un = np.linalg.norm(u, axis=1)
+    vertical = un < 1e-6  # a plunge: any horizontal direction will do
+    u[vertical] = [1.0, 0.0, 0.0]
+    u /= np.maximum(np.linalg.norm(u, axis=1), 1e-12)[:, None]
+    v = np.cross(u, tangent)  # perpendicular to the tangent, in its vertical plane
+    v[v[:, 2] < 0] *= -1.0
+    off = pts[nb] - pts[:, None, :]  # (m, k, 3)
+    a = np.einsum("mkj,mj->mk", off, u)
+    b = np.einsum("mkj,mj->mk", off, v)
+    w = np.where(other, 1.0 / np.maximum(dist, 1e-9) ** 2, 0.0)
+    saa, sbb, sab = (w * a * a).sum(1), (w * b * b).sum(1), (w * a * b).sum(1)
+    # smallest eigenvector of [[saa, sab], [sab, sbb]]: the direction (alpha, beta)
+    # minimising sum w (alpha a + beta b)^2
+    half = 0.5 * (saa - sbb)
+    root = np.sqrt(half * half + sab * sab)
+    lam = 0.5 * (saa + sbb) - root
+    alpha, beta = sab, lam - saa
+    small = np.hypot(alpha, beta) < 1e-12 * np.maximum(saa + sbb, 1e-300)
+    alpha = np.where(small, 0.0, alpha)
+    beta = np.where(small, 1.0, beta)
+    n = alpha[:, None] * u + beta[:, None] * v
+    n /= np.maximum(np.linalg.norm(n, axis=1), 1e-12)[:, None]
+    n[n[:, 2] < 0] *= -1.0
+    has = other.any(axis=1)
+    n[~has] = v[~has]  # no other pass near: no cross-slope
+    side_pos = (other & (a > 0)).any(axis=1)
+    side_neg = (other & (a < 0)).any(axis=1)
+    conf = np.where(~has, NO_CROSS, np.where(side_pos & side_neg, CONFIDENT, ONE_SIDED))
+    near = np.where(other, dist, np.inf).min(axis=1)
+    stepover = float(np.median(near[np.isfinite(near)])) if np.isfinite(near).any() else float("nan")
+    return n, conf.astype(np.int8), stepover
+
+
+def contacts_from_path(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarray,
+                       cutter: Cutter) -> tuple[Contacts, PathNormals]:
+    """Contacts (CC point, normal, R_eff) from the toolpath alone."""
+    est = path_normals(centers_mm, path_mm, cutting)
+    cc = centers_mm - cutter.corner_radius_mm * est.normal
+    planning_normal = tilt_from_axis(est.normal, np.where(est.confidence == ONE_SIDED,
+                                                          np.radians(ONE_SIDED_TILT_DEG), 0.0))
+    return Contacts(cc_mm=cc, normal=est.normal, r_eff_mm=r_eff_mm(cutter, planning_normal),
+                    cutting=cutting.copy()), est
+
+
+def tilt_from_axis(normal: np.ndarray, angle_rad: np.ndarray) -> np.ndarray:
+    """Normals turned away from +Z by ``angle_rad`` in their vertical plane."""
+    polar = np.arccos(np.clip(normal[:, 2], -1.0, 1.0)) + angle_rad
+    horiz = normal[:, :2]
+    hn = np.linalg.norm(horiz, axis=1)
+    direction = np.where(hn[:, None] > 1e-12, horiz / np.maximum(hn, 1e-12)[:, None], [1.0, 0.0])
+    out = np.empty_like(normal)
+    out[:, :2] = direction * np.sin(polar)[:, None]
+    out[:, 2] = np.cos(polar)
+    return out
