@@ -1,9 +1,11 @@
 """The library entry points: what the CLI calls, and what people import.
 
     >>> from ncopt.api import Job, rewrite_file
+    >>> from ncopt.model import Cutter, Machine
     >>> job = Job(cutter=Cutter(16, 2), machine=Machine(accel_rad_s2=227, max_rpm=15000))
-    >>> result = rewrite_file("bowl.mpf", job, mesh_path="bowl.stl")
-    >>> result.text, result.summary.cut_time_after_min
+    >>> result = rewrite_file("samples/bowl.mpf", job, mesh_path="samples/bowl.stl")
+    >>> round(result.summary.time_change_pct)
+    -47
 """
 
 from __future__ import annotations
@@ -14,29 +16,52 @@ from pathlib import Path
 import numpy as np
 
 from . import planner
+from .contacts import Sampled, contacts_for
 from .errors import PlanningError, UsageError, VerificationError
-from .geometry import MeshIndex, contacts_from_mesh, load_stl, mesh_resolution_mm
+from .geometry import MeshIndex, load_stl, mesh_resolution_mm
 from .interp import interpret
-from .model import Contacts, Cutter, CuttingData, Machine, Motion, PlanOptions, Program, Toolpath
+from .model import Cutter, CuttingData, Machine, Motion, PlanOptions, Program, Toolpath
 from .parse import parse_text
-from .pathnormals import NO_CROSS, ONE_SIDED, contacts_from_path
+from .pathnormals import NO_CROSS, ONE_SIDED
 from .rewrite import F_CODE, S_CODE, Targets, apply_edits, detect_style, masked, plan_edits
-from .tools import center_offset_mm, required_rpm
+from .tooltable import BALL, BULL, cutter_for, tool_table
+from .tools import required_rpm
 
 MM_PER_INCH = 25.4
 
 
 @dataclass(frozen=True)
 class Job:
-    """Everything a rewrite needs besides the program and the mesh."""
+    """Everything a rewrite needs besides the program and the mesh.
 
-    cutter: Cutter
+    cutter : None reads each tool from the program's tool comments
+    cutting : None takes vc and fz from the program's own S and F
+    tool : plan only this T number's moves
+    teeth : used when the cutter comes from the program (only matters with cutting data given)
+    """
+
     machine: Machine
-    cutting: CuttingData | None = None  # None: from the program's own S and F
+    cutter: Cutter | None = None
+    cutting: CuttingData | None = None
     options: PlanOptions = PlanOptions()
-    tool: int | None = None  # plan only this T number's moves
+    tool: int | None = None
+    teeth: int = 2
     contact_tol_mm: float = 0.05
     verify: bool = True
+
+
+@dataclass(frozen=True)
+class ToolPlan:
+    """One tool section's plan."""
+
+    tool: int
+    cutter: Cutter
+    cutting: CuttingData
+    source: str  # where the cutter came from: "options" or the comment's line
+    blocks: planner.Blocks
+    s_cmd_rpm: np.ndarray
+    f_mm_min: np.ndarray
+    sampled: Sampled
 
 
 @dataclass(frozen=True)
@@ -55,6 +80,8 @@ class Summary:
     vc_m_min: float
     fz_mm: float
     max_s_rpm: float
+    tools: tuple = ()  # (T, description, source) per planned tool
+    skipped_tools: tuple = ()  # (T, why) per tool left untouched
     mesh_edge_mm: float | None = None
     warnings: tuple = ()
     normals_from: str = "mesh"
@@ -71,17 +98,20 @@ class Summary:
 
 @dataclass(frozen=True)
 class Result:
-    """The rewritten text and how it came about (arrays per moving block)."""
+    """The rewritten text and how it came about."""
 
     text: str
     summary: Summary
     program: Program
     toolpath: Toolpath
-    blocks: planner.Blocks
-    block_line: np.ndarray
-    s_cmd_rpm: np.ndarray
-    f_mm_min: np.ndarray
-    extras: dict = field(default_factory=dict)
+    block_index: planner.BlockIndex
+    plans: tuple[ToolPlan, ...]
+    targets: Targets
+
+    @property
+    def plan(self) -> ToolPlan:
+        """The plan of a single-tool program."""
+        return self.plans[0]
 
 
 def rewrite_file(path: str | Path, job: Job, mesh_path: str | Path | None = None,
@@ -98,50 +128,84 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     """Rewrite a program's S and F words; every other byte stays as it is."""
     prog = parse_text(text, path)
     tp = interpret(prog)
-    selected = _selected_moves(tp, job, path)
-    cut = job.cutting or nominal_cutting_data(tp, selected, job.cutter, path)
-    if mesh_index is not None:
-        contacts, sample_point = _contacts(tp, job, mesh_index)
-        estimate = None
-    else:
-        contacts, sample_point, estimate = _contacts_without_mesh(tp, job, selected)
-    blocks, block_line, first_point = build_blocks(tp, contacts, sample_point, selected, cut,
-                                                   job)
-    s_cmd, f_mm = plan_blocks(blocks, job, cut)
+    idx = planner.block_index(tp.line)
+    plans, skipped = _plan_tools(prog, tp, idx, job, mesh_index)
     s_style = detect_style(prog, S_CODE)
     f_style = detect_style(prog, F_CODE, default_decimals=1)
     if tp.line_inch is not None and tp.line_inch.any() and f_style.decimals < 2:
         f_style = replace(f_style, decimals=2, trailing_point=False)  # inch/min needs them
-    targets = _targets(prog, tp, blocks, block_line, first_point, s_cmd, f_mm, f_style)
+    targets = _targets(tp, idx, plans, f_style)
     edits = plan_edits(prog, targets, s_style, f_style)
     out = apply_edits(text, edits)
     if job.verify:
         verify(prog, tp, out, targets, s_style, f_style)
-    summary = _summary(prog, tp, blocks, block_line, first_point, s_cmd, f_mm, cut, edits,
-                       mesh_index, targets)
-    if estimate is not None:
-        summary = replace(summary, normals_from="toolpath", stepover_mm=estimate.stepover_mm,
-                          one_sided_points=int(np.sum(estimate.confidence == ONE_SIDED)),
-                          no_cross_points=int(np.sum((estimate.confidence == NO_CROSS)
-                                                     & contacts.cutting)))
-    return Result(out, summary, prog, tp, blocks, block_line, s_cmd, f_mm,
-                  {"contacts": contacts, "sample_point": sample_point, "cutting": cut})
+    summary = _summary(prog, tp, idx, plans, skipped, edits, mesh_index)
+    return Result(out, summary, prog, tp, idx, tuple(plans), targets)
 
 
-def _selected_moves(tp: Toolpath, job: Job, path: str) -> np.ndarray:
-    """(n,) bool: feed moves ncopt may plan (known position, chosen tool, spindle on)."""
+def _plan_tools(prog, tp, idx, job, mesh_index):
+    """Plan every ball or bull-nose tool section with its own cutter."""
     feed = np.isin(tp.motion, [Motion.LINEAR, Motion.ARC_CW, Motion.ARC_CCW])
-    ok = feed & tp.known & tp.spindle_on
-    tools = np.unique(tp.tool[ok])
-    if job.tool is None and tools.size > 1:
-        listed = ", ".join(f"T{t}" for t in tools.tolist())
-        raise UsageError(f"the program cuts with several tools ({listed}); choose the ball or "
-                         "bull-nose to plan with --tool N", path)
+    plannable = feed & tp.known & tp.spindle_on
+    tools = np.unique(tp.tool[plannable]).tolist()
     if job.tool is not None:
-        ok &= tp.tool == job.tool
-        if not ok.any():
-            raise UsageError(f"no feed moves with tool T{job.tool}; check --tool", path)
-    return ok
+        if job.tool not in tools:
+            raise UsageError(f"no feed moves with tool T{job.tool}; check --tool", prog.path)
+        tools = [job.tool]
+    if job.cutter is not None and len(tools) > 1:
+        listed = ", ".join(f"T{t}" for t in tools)
+        raise UsageError(f"the program cuts with several tools ({listed}); say which one "
+                         "--diameter describes with --tool N", prog.path)
+    table = tool_table(prog) if job.cutter is None else {}
+    plans, skipped = [], []
+    for tool in tools:
+        cutter, source, why = _cutter(job, table, tool, len(tools), tp.line_inch)
+        if cutter is None:
+            skipped.append((tool, why))
+            continue
+        selected = plannable & (tp.tool == tool)
+        plans.append(_plan_tool(tp, idx, job, mesh_index, tool, cutter, source, selected))
+    if not plans:
+        why = "; ".join(f"{_tool_name(t)}: {w}" for t, w in skipped) or "no feed moves with a " \
+            "running spindle and a known position"
+        raise PlanningError(f"nothing to plan ({why})", prog.path)
+    return plans, skipped
+
+
+def _tool_name(tool: int) -> str:
+    return f"T{tool}" if tool >= 0 else "the tool (the program names none)"
+
+
+def _cutter(job, table, tool, n_tools, line_inch):
+    """The cutter of T``tool``: from the options, else the program's tool comment."""
+    if job.cutter is not None:
+        return job.cutter, "options", ""
+    info = cutter_for(table, tool, n_tools)
+    if info is None:
+        return None, "", "no diameter known from the program's comments: give --diameter " \
+            "(and --corner-radius for a bull-nose)"
+    if info.kind not in (BALL, BULL):
+        kind = "a flat end mill" if info.kind == "flat" else "not a ball or bull-nose"
+        return None, "", f"{kind} ({info.text.strip()}); ncopt plans ball and bull-nose " \
+            "cutters only"
+    inch = line_inch is not None and bool(np.any(line_inch))
+    scale = MM_PER_INCH if inch else 1.0
+    return info.cutter(job.teeth, scale), f"line {info.line}: ({info.text.strip()})", ""
+
+
+def _plan_tool(tp, idx, job, mesh_index, tool, cutter, source, selected) -> ToolPlan:
+    cut = job.cutting or nominal_cutting_data(tp, selected, cutter, "<program>")
+    sampled = contacts_for(tp, cutter, selected, mesh_index, job.options.sample_mm,
+                           job.contact_tol_mm)
+    c = sampled.contacts
+    req = required_rpm(c.r_eff_mm, cut.vc_m_min)
+    in_section = (tp.tool == tool)
+    blocks = planner.blocks_from_contacts(
+        idx, tp.seg_len_mm, tp.motion, tp.feed_mm_min, tp.known,
+        tp.spindle_on & in_section, tp.spindle_rpm, req, c.cutting, sampled.point, selected,
+        job.machine.rapid_mm_min)
+    s_cmd, f_mm, _ = planner.plan(blocks, job.machine, cut, cutter.teeth, job.options)
+    return ToolPlan(tool, cutter, cut, source, blocks, s_cmd, f_mm, sampled)
 
 
 def nominal_cutting_data(tp: Toolpath, selected: np.ndarray, cutter: Cutter,
@@ -170,114 +234,20 @@ def _weighted_median(values: np.ndarray, weight: np.ndarray) -> float:
     return float(values[order][np.searchsorted(cum, 0.5 * cum[-1])])
 
 
-def sample_points(tp: Toolpath, sample_mm: float) -> tuple[np.ndarray, np.ndarray]:
-    """Points along every move, at most ``sample_mm`` apart, ending on each CL point.
-
-    Returns xyz (m, 3) in mm and, per sample, the index of the toolpath point
-    whose move it lies on (point 0 for the start point).
-    """
-    seg = np.linalg.norm(np.diff(tp.xyz_mm, axis=0), axis=1)
-    n_per = np.maximum(np.ceil(seg / sample_mm).astype(np.int64), 1)
-    point = np.concatenate(([0], np.repeat(np.arange(1, tp.n), n_per)))
-    offsets = np.concatenate(([0], np.cumsum(n_per)))
-    k = np.arange(1, offsets[-1] + 1) - np.repeat(offsets[:-1], n_per)
-    frac = k / np.repeat(n_per, n_per)
-    a = tp.xyz_mm[point[1:] - 1]
-    b = tp.xyz_mm[point[1:]]
-    xyz = np.vstack((tp.xyz_mm[:1], a + (b - a) * frac[:, None]))
-    return xyz, point
-
-
-def _contacts(tp: Toolpath, job: Job, mesh_index: MeshIndex) -> tuple[Contacts, np.ndarray]:
-    xyz, point = sample_points(tp, job.options.sample_mm)
-    centers = xyz + np.array([0.0, 0.0, center_offset_mm(job.cutter)])
-    return contacts_from_mesh(centers, mesh_index, job.cutter, tol_mm=job.contact_tol_mm), point
-
-
-def air_moves(tp: Toolpath) -> np.ndarray:
-    """(n,) bool: feed moves that cannot be cutting without a mesh to say otherwise:
-    plunges and retracts (nearly vertical), and moves at or above the lowest rapid
-    height that follows a retract (the clearance plane)."""
-    d = np.diff(tp.xyz_mm, axis=0)
-    length = np.linalg.norm(d, axis=1)
-    steep = np.concatenate(([False], np.abs(d[:, 2]) > 0.98 * np.maximum(length, 1e-12)))
-    rapid_z = tp.xyz_mm[tp.motion == Motion.RAPID, 2]
-    clear = np.zeros(tp.n, dtype=bool)
-    if rapid_z.size:
-        clear = tp.xyz_mm[:, 2] >= np.min(rapid_z) - 1e-6
-    start_z = np.concatenate(([np.inf], tp.xyz_mm[:-1, 2]))
-    return steep | (clear & (start_z >= np.min(rapid_z) - 1e-6 if rapid_z.size else clear))
-
-
-def _contacts_without_mesh(tp: Toolpath, job: Job, selected: np.ndarray):
-    """Contacts at the CL points from the toolpath's own shape (no interior samples:
-    normals between two points are their interpolation)."""
-    centers = tp.xyz_mm + np.array([0.0, 0.0, center_offset_mm(job.cutter)])
-    path = np.cumsum(tp.seg_len_mm)
-    cutting = selected & ~air_moves(tp)
-    contacts, estimate = contacts_from_path(centers, path, cutting, job.cutter)
-    return contacts, np.arange(tp.n), estimate
-
-
-def build_blocks(tp: Toolpath, contacts: Contacts, sample_point: np.ndarray,
-                 selected: np.ndarray, cut: CuttingData, job: Job):
-    """Per moving block: length, lowest required S, cutting, duration."""
-    req = np.where(contacts.cutting, required_rpm(contacts.r_eff_mm, cut.vc_m_min), np.inf)
-    n = tp.n
-    seg_min = np.full(n, np.inf)
-    np.minimum.at(seg_min, sample_point, req)
-    cut_pt = np.zeros(n, dtype=bool)
-    np.logical_or.at(cut_pt, sample_point, contacts.cutting)
-    end_req = np.full(n, np.inf)
-    last_sample = np.concatenate((np.flatnonzero(np.diff(sample_point)), [sample_point.size - 1]))
-    end_req[sample_point[last_sample]] = req[last_sample]
-    point_req = np.minimum(seg_min, np.concatenate(([np.inf], end_req[:-1])))
-    starts = np.flatnonzero(np.diff(tp.line[1:]) != 0) + 2 if n > 1 else np.zeros(0, int)
-    first_point = np.concatenate(([1], starts)) if n > 1 else np.zeros(0, int)
-    block_line = tp.line[first_point]
-    length = np.add.reduceat(tp.seg_len_mm[1:], first_point - 1) if n > 1 else np.zeros(0)
-    block_req = np.minimum.reduceat(point_req[1:], first_point - 1) if n > 1 else np.zeros(0)
-    block_cut = np.logical_or.reduceat(cut_pt[1:], first_point - 1) if n > 1 else np.zeros(0, bool)
-    planned = selected[first_point]
-    cutting = block_cut & planned  # an infinite requirement (tip contact) is capped at S_max
-    motion = tp.motion[first_point]
-    speed = np.where(motion == Motion.RAPID, job.machine.rapid_mm_min,
-                     np.nan_to_num(tp.feed_mm_min[first_point], nan=job.machine.rapid_mm_min))
-    time_s = 60.0 * length / np.maximum(speed, 1e-9)
-    # rapids and air moves are free for the spindle to ramp; a rapid needs no known start
-    rapid = motion == Motion.RAPID
-    free = ~selected[first_point] & tp.spindle_on[first_point] & (rapid | tp.known[first_point])
-    planned = planned | free
-    fixed = tp.spindle_rpm[first_point]
-    blocks = planner.Blocks(length_mm=length, req_rpm=block_req, cutting=cutting,
-                            planned=planned, time_s=time_s, fixed_rpm=fixed)
-    return blocks, block_line, first_point
-
-
-def plan_blocks(blocks: planner.Blocks, job: Job, cut: CuttingData):
-    """Profile -> integer S commands -> F (mm/min) per block."""
-    teeth = job.cutter.teeth
-    plan = planner.lookahead if job.options.planner == "lookahead" else planner.forward
-    if job.options.planner not in ("lookahead", "forward"):
-        raise UsageError(f"unknown planner {job.options.planner!r}; use lookahead or forward")
-    profile = plan(blocks, job.machine, cut, teeth, job.options)
-    incs = planner.increments(blocks, job.machine, profile.k_rpm2_per_mm)
-    s_lo, _ = planner.speed_limits(job.machine, cut, teeth)
-    s_cmd, s_low = planner.emit_rpm(profile, blocks, incs, job.options, s_lo)
-    f_mm = planner.feeds(s_low, blocks, cut, teeth, job.machine.max_feed_mm_min)
-    return s_cmd, f_mm
-
-
-def _targets(prog, tp, blocks, block_line, first_point, s_cmd, f_mm, f_style) -> Targets:
-    inch = tp.line_inch[block_line] if tp.line_inch is not None else np.zeros(len(block_line), bool)
+def _targets(tp, idx, plans, f_style) -> Targets:
+    """S and F to be in force per block: planned where a tool was planned, else as programmed."""
+    fp = idx.first_point
+    inch = tp.line_inch[idx.line] if tp.line_inch is not None else np.zeros(fp.shape, bool)
     unit = np.where(inch, MM_PER_INCH, 1.0)
-    s_value = np.where(blocks.planned, s_cmd, tp.spindle_rpm[first_point])
-    feed_move = tp.motion[first_point] != Motion.RAPID
-    original_f = tp.feed_mm_min[first_point] / unit
+    feed_move = tp.motion[fp] != Motion.RAPID
+    s_value = tp.spindle_rpm[fp].astype(np.float64)
+    f_value = np.where(feed_move, tp.feed_mm_min[fp] / unit, np.nan)
     scale = 10.0 ** f_style.decimals
-    planned_f = np.floor(f_mm / unit * scale + 1e-9) / scale  # never above the fz target
-    f_value = np.where(blocks.cutting, planned_f, np.where(feed_move, original_f, np.nan))
-    return Targets(line=block_line, s_value=s_value, f_value=f_value)
+    for p in plans:
+        s_value = np.where(p.blocks.planned, p.s_cmd_rpm, s_value)
+        planned_f = np.floor(p.f_mm_min / unit * scale + 1e-9) / scale  # never above fz
+        f_value = np.where(p.blocks.cutting, planned_f, f_value)
+    return Targets(line=idx.line, s_value=s_value, f_value=f_value)
 
 
 def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_style) -> None:
@@ -296,21 +266,48 @@ def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_s
                                 prog.path, line)
 
 
-def _summary(prog, tp, blocks, block_line, first_point, s_cmd, f_mm, cut, edits, mesh_index,
-             targets) -> Summary:
-    cutting = blocks.cutting
-    f_orig = tp.feed_mm_min[first_point]
-    before = float(np.sum(blocks.length_mm[cutting] / f_orig[cutting]))
-    after = float(np.sum(blocks.length_mm[cutting] / f_mm[cutting]))
-    edge = float(mesh_resolution_mm(mesh_index.mesh).median_mm) if mesh_index is not None else None
-    s_words = sum(1 for e in edits if prog.text[e.start - 1:e.start] in "Ss" and e.start != e.end
-                  or "S" in e.text.upper() and e.start == e.end)
-    f_words = sum(1 for e in edits if prog.text[e.start - 1:e.start] in "Ff" and e.start != e.end
-                  or "F" in e.text.upper() and e.start == e.end)
-    return Summary(blocks=prog.n_lines, moving_blocks=int(blocks.length_mm.shape[0]),
-                   cutting_blocks=int(cutting.sum()), planned_blocks=int(blocks.planned.sum()),
-                   s_words=s_words, f_words=f_words, edits=len(edits),
-                   cut_time_before_min=before, cut_time_after_min=after,
-                   vc_m_min=cut.vc_m_min, fz_mm=cut.fz_mm,
-                   max_s_rpm=float(np.max(s_cmd)) if s_cmd.size else 0.0,
-                   mesh_edge_mm=edge, warnings=tp.warnings)
+def _summary(prog, tp, idx, plans, skipped, edits, mesh_index) -> Summary:
+    fp = idx.first_point
+    f_orig = tp.feed_mm_min[fp]
+    before = after = 0.0
+    cutting_blocks = planned_blocks = 0
+    for p in plans:
+        c = p.blocks.cutting
+        before += float(np.sum(p.blocks.length_mm[c] / f_orig[c]))
+        after += float(np.sum(p.blocks.length_mm[c] / p.f_mm_min[c]))
+        cutting_blocks += int(c.sum())
+        planned_blocks += int(p.blocks.planned.sum())
+    letters = "".join(_edited_letters(prog.text, e) for e in edits)
+    s_words, f_words = letters.count("S"), letters.count("F")
+    first = plans[0]
+    summary = Summary(
+        blocks=prog.n_lines, moving_blocks=int(fp.shape[0]), cutting_blocks=cutting_blocks,
+        planned_blocks=planned_blocks, s_words=s_words, f_words=f_words, edits=len(edits),
+        cut_time_before_min=before, cut_time_after_min=after, vc_m_min=first.cutting.vc_m_min,
+        fz_mm=first.cutting.fz_mm, max_s_rpm=max(float(np.max(p.s_cmd_rpm)) for p in plans),
+        tools=tuple((p.tool, _describe(p.cutter), p.source) for p in plans),
+        skipped_tools=tuple(skipped),
+        mesh_edge_mm=float(mesh_resolution_mm(mesh_index.mesh).median_mm) if mesh_index else None,
+        warnings=tp.warnings)
+    est = first.sampled.estimate
+    if est is not None:
+        summary = replace(summary, normals_from="toolpath", stepover_mm=est.stepover_mm,
+                          one_sided_points=int(np.sum(est.confidence == ONE_SIDED)),
+                          no_cross_points=int(np.sum((est.confidence == NO_CROSS)
+                                                     & first.sampled.contacts.cutting)))
+    return summary
+
+
+def _edited_letters(text: str, edit) -> str:
+    """The letters of the words an edit writes: appended ones carry their own."""
+    if edit.start == edit.end:  # appended words: " S1500 F300"
+        return "".join(ch for ch in edit.text.upper() if ch in "SF")
+    i = edit.start - 1
+    while i >= 0 and text[i] in " \t":
+        i -= 1
+    return text[i].upper() if i >= 0 else ""
+
+
+def _describe(cutter: Cutter) -> str:
+    kind = "ball" if cutter.is_ball else f"bull-nose r{cutter.corner_radius_mm:g}"
+    return f"D{cutter.diameter_mm:g} {kind}, {cutter.teeth} teeth"

@@ -57,10 +57,11 @@ def rewrite(
                                          help="Where to write; - or omitted: stdout."),
     mesh: Optional[Path] = typer.Option(None, "--mesh", help="Part mesh (STL, binary or "
                                         "ASCII), mm. Without it, normals come from the toolpath."),
-    diameter: float = typer.Option(..., "--diameter", help="Cutter diameter D, mm."),
+    diameter: Optional[float] = typer.Option(None, "--diameter", help="Cutter diameter D, mm "
+                                             "(default: from the program's tool comments)."),
     corner_radius: Optional[float] = typer.Option(None, "--corner-radius",
                                                   help="Bull-nose corner radius r, mm (default: ball)."),
-    teeth: int = typer.Option(..., "--teeth", help="Number of teeth z."),
+    teeth: int = typer.Option(2, "--teeth", help="Number of teeth z (matters only with --fz)."),
     vc: Optional[float] = typer.Option(None, "--vc", help="Cutting speed target, m/min "
                                        "(default: the program's S at the nominal diameter)."),
     fz: Optional[float] = typer.Option(None, "--fz", help="Feed per tooth target, mm "
@@ -96,10 +97,11 @@ def _job(diameter, corner_radius, teeth, vc, fz, accel, max_rpm, min_rpm, max_fe
         raise UsageError(f"--planner must be lookahead or forward, not {planner!r}")
     if tool_point not in ("tip", "center"):
         raise UsageError(f"--tool-point must be tip or center, not {tool_point!r}")
-    if diameter <= 0 or teeth <= 0 or accel <= 0 or max_rpm <= 0:
+    if (diameter is not None and diameter <= 0) or teeth <= 0 or accel <= 0 or max_rpm <= 0:
         raise UsageError("--diameter, --teeth, --accel and --max-rpm must be positive")
-    if corner_radius is not None and not 0 < corner_radius <= diameter / 2:
-        raise UsageError("--corner-radius must be above 0 and at most half the diameter")
+    if corner_radius is not None and (diameter is None or not 0 < corner_radius <= diameter / 2):
+        raise UsageError("--corner-radius needs --diameter and must be above 0 and at most "
+                         "half the diameter")
     if (vc is None) != (fz is None):
         raise UsageError("give both --vc and --fz, or neither (then the program's S and F set them)")
     if min_rpm > max_rpm:
@@ -107,9 +109,10 @@ def _job(diameter, corner_radius, teeth, vc, fz, accel, max_rpm, min_rpm, max_fe
     cutting = CuttingData(vc, fz) if vc is not None else None
     if cutting is not None and (vc <= 0 or fz <= 0):
         raise UsageError("--vc and --fz must be positive")
-    return Job(cutter=Cutter(diameter, teeth, corner_radius, tool_point),
-               machine=Machine(accel, max_rpm, min_rpm, max_feed, rapid), cutting=cutting,
-               options=PlanOptions(planner=planner, min_rpm_step=min_rpm_step), tool=tool)
+    cutter = Cutter(diameter, teeth, corner_radius, tool_point) if diameter is not None else None
+    return Job(cutter=cutter, machine=Machine(accel, max_rpm, min_rpm, max_feed, rapid),
+               cutting=cutting, options=PlanOptions(planner=planner, min_rpm_step=min_rpm_step),
+               tool=tool, teeth=teeth)
 
 
 def _read(path: str) -> bytes:
@@ -145,6 +148,11 @@ def _write(output: Optional[str], data: bytes, input: str) -> None:
 def _print_summary(s: Summary) -> None:
     err.print(f"ncopt: {s.blocks} blocks, {s.cutting_blocks} cutting blocks planned, "
               f"{s.s_words} S and {s.f_words} F words written")
+    for tool, what, source in s.tools:
+        err.print(f"ncopt: T{tool}: {what} ({'from ' + source if source != 'options' else 'from the options'})",
+                  markup=False)
+    for tool, why in s.skipped_tools:
+        err.print(f"ncopt: T{tool} left untouched: {why}", markup=False)
     err.print(f"ncopt: vc {s.vc_m_min:.1f} m/min, fz {s.fz_mm:.4f} mm, highest S {s.max_s_rpm:.0f} RPM")
     err.print(f"ncopt: estimated cutting time {s.cut_time_before_min:.1f} -> "
               f"{s.cut_time_after_min:.1f} min ({s.time_change_pct:+.1f} %)")

@@ -271,3 +271,70 @@ def feeds(s_low: np.ndarray, blocks: Blocks, cut: CuttingData, teeth: int,
     """F per cutting block from the lowest real spindle speed in the block, mm/min."""
     f = np.minimum(cut.fz_mm * teeth * s_low, max_feed_mm_min)
     return np.where(blocks.cutting & blocks.planned, f, np.nan)
+
+
+@dataclass(frozen=True)
+class BlockIndex:
+    """Which toolpath points make each moving block (one source line each).
+
+    line : (nb,) source line of each block;  first_point : (nb,) its first point
+    """
+
+    line: np.ndarray
+    first_point: np.ndarray
+
+
+def block_index(line_of_point: np.ndarray) -> BlockIndex:
+    """Group toolpath points 1..n-1 into blocks by source line."""
+    n = line_of_point.shape[0]
+    if n < 2:
+        return BlockIndex(np.zeros(0, np.int32), np.zeros(0, np.int64))
+    starts = np.flatnonzero(np.diff(line_of_point[1:]) != 0) + 2
+    first = np.concatenate(([1], starts)).astype(np.int64)
+    return BlockIndex(line_of_point[first], first)
+
+
+def blocks_from_contacts(idx: BlockIndex, seg_len_mm, motion, feed_mm_min, known, spindle_on,
+                         spindle_rpm, req_at_sample, cutting_at_sample, sample_point,
+                         selected, rapid_mm_min: float) -> Blocks:
+    """Per block: length, lowest required S along it (both end points and every
+    sample between), cutting, and the duration of non-cutting blocks.
+
+    ``req_at_sample`` is inf where a sample does not cut or where the contact is
+    at the tool tip (R_eff = 0): the cap at S_max takes over there.
+    """
+    n = seg_len_mm.shape[0]
+    req = np.where(cutting_at_sample, req_at_sample, np.inf)
+    seg_min = np.full(n, np.inf)
+    np.minimum.at(seg_min, sample_point, req)
+    cut_pt = np.zeros(n, dtype=bool)
+    np.logical_or.at(cut_pt, sample_point, cutting_at_sample)
+    last = np.concatenate((np.flatnonzero(np.diff(sample_point)), [sample_point.size - 1]))
+    end_req = np.full(n, np.inf)
+    end_req[sample_point[last]] = req[last]
+    point_req = np.minimum(seg_min, np.concatenate(([np.inf], end_req[:-1])))
+    fp = idx.first_point
+    length = np.add.reduceat(seg_len_mm[1:], fp - 1)
+    block_req = np.minimum.reduceat(point_req[1:], fp - 1)
+    block_cut = np.logical_or.reduceat(cut_pt[1:], fp - 1)
+    rapid = motion[fp] == 0
+    speed = np.where(rapid, rapid_mm_min, np.nan_to_num(feed_mm_min[fp], nan=rapid_mm_min))
+    time_s = 60.0 * length / np.maximum(speed, 1e-9)
+    cutting = block_cut & selected[fp]
+    # rapids and air moves let the spindle ramp; a rapid needs no known start
+    free = ~selected[fp] & spindle_on[fp] & (rapid | known[fp])
+    return Blocks(length_mm=length, req_rpm=block_req, cutting=cutting,
+                  planned=selected[fp] | free, time_s=time_s, fixed_rpm=spindle_rpm[fp])
+
+
+def plan(blocks: Blocks, machine: Machine, cut: CuttingData, teeth: int,
+         opts: PlanOptions) -> tuple[np.ndarray, np.ndarray, Profile]:
+    """Profile -> integer S commands (RPM) -> F (mm/min) per block."""
+    if opts.planner not in ("lookahead", "forward"):
+        raise ValueError(f"unknown planner {opts.planner!r}")
+    planner_fn = lookahead if opts.planner == "lookahead" else forward
+    profile = planner_fn(blocks, machine, cut, teeth, opts)
+    incs = increments(blocks, machine, profile.k_rpm2_per_mm)
+    s_lo, _ = speed_limits(machine, cut, teeth)
+    s_cmd, s_low = emit_rpm(profile, blocks, incs, opts, s_lo)
+    return s_cmd, feeds(s_low, blocks, cut, teeth, machine.max_feed_mm_min), profile

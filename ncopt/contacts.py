@@ -1,0 +1,76 @@
+"""Toolpath -> contacts: where the cutter touches the part, per sample point.
+
+With a mesh, every move is sampled at most ``sample_mm`` apart and the
+contacts come from closest-point queries (:mod:`ncopt.geometry`).  Without a
+mesh, the CL points themselves are the samples and the normals come from the
+toolpath's own shape (:mod:`ncopt.pathnormals`); between two points the
+normal is their interpolation, so no interior samples are needed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .geometry import MeshIndex, contacts_from_mesh
+from .model import Contacts, Cutter, Motion, Toolpath
+from .pathnormals import PathNormals, contacts_from_path
+from .tools import center_offset_mm
+
+
+@dataclass(frozen=True)
+class Sampled:
+    """Contacts and, per sample, the index of the toolpath point whose move it is on."""
+
+    contacts: Contacts
+    point: np.ndarray  # (m,) int
+    estimate: PathNormals | None = None  # mesh-free only
+
+
+def sample_points(tp: Toolpath, sample_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """Points along every move, at most ``sample_mm`` apart, ending on each CL point.
+
+    Returns xyz (m, 3) in mm and, per sample, the index of the toolpath point
+    whose move it lies on (point 0 for the start point).
+    """
+    seg = np.linalg.norm(np.diff(tp.xyz_mm, axis=0), axis=1)
+    n_per = np.maximum(np.ceil(seg / sample_mm).astype(np.int64), 1)
+    point = np.concatenate(([0], np.repeat(np.arange(1, tp.n), n_per)))
+    offsets = np.concatenate(([0], np.cumsum(n_per)))
+    k = np.arange(1, offsets[-1] + 1) - np.repeat(offsets[:-1], n_per)
+    frac = k / np.repeat(n_per, n_per)
+    a = tp.xyz_mm[point[1:] - 1]
+    b = tp.xyz_mm[point[1:]]
+    xyz = np.vstack((tp.xyz_mm[:1], a + (b - a) * frac[:, None]))
+    return xyz, point
+
+
+def air_moves(tp: Toolpath) -> np.ndarray:
+    """(n,) bool: feed moves that cannot be cutting when no mesh says otherwise.
+
+    Plunges and retracts (within 11 deg of vertical) and moves that start and end
+    at or above the lowest rapid height (the clearance plane).
+    """
+    d = np.diff(tp.xyz_mm, axis=0)
+    length = np.linalg.norm(d, axis=1)
+    steep = np.concatenate(([False], np.abs(d[:, 2]) > 0.98 * np.maximum(length, 1e-12)))
+    rapid_z = tp.xyz_mm[(tp.motion == Motion.RAPID) & tp.known, 2]
+    if rapid_z.size == 0:
+        return steep
+    clear_z = float(np.min(rapid_z)) - 1e-6
+    start_z = np.concatenate(([np.inf], tp.xyz_mm[:-1, 2]))
+    return steep | ((tp.xyz_mm[:, 2] >= clear_z) & (start_z >= clear_z))
+
+
+def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index: MeshIndex | None,
+                 sample_mm: float, tol_mm: float) -> Sampled:
+    """Contacts of ``cutter`` along the toolpath, from the mesh if there is one."""
+    offset = np.array([0.0, 0.0, center_offset_mm(cutter)])
+    if mesh_index is not None:
+        xyz, point = sample_points(tp, sample_mm)
+        return Sampled(contacts_from_mesh(xyz + offset, mesh_index, cutter, tol_mm=tol_mm), point)
+    path = np.cumsum(tp.seg_len_mm)
+    cutting = selected & ~air_moves(tp)
+    contacts, estimate = contacts_from_path(tp.xyz_mm + offset, path, cutting, cutter)
+    return Sampled(contacts, np.arange(tp.n), estimate)
