@@ -284,7 +284,7 @@ def _summary(prog, tp, idx, plans, skipped, edits, mesh_index) -> Summary:
         blocks=prog.n_lines, moving_blocks=int(fp.shape[0]), cutting_blocks=cutting_blocks,
         planned_blocks=planned_blocks, s_words=s_words, f_words=f_words, edits=len(edits),
         cut_time_before_min=before, cut_time_after_min=after, vc_m_min=first.cutting.vc_m_min,
-        fz_mm=first.cutting.fz_mm, max_s_rpm=max(float(np.max(p.s_cmd_rpm)) for p in plans),
+        fz_mm=first.cutting.fz_mm, max_s_rpm=max(float(np.max(p.s_cmd_rpm[p.blocks.planned], initial=0.0)) for p in plans),
         tools=tuple((p.tool, _describe(p.cutter), p.source) for p in plans),
         skipped_tools=tuple(skipped),
         mesh_edge_mm=float(mesh_resolution_mm(mesh_index.mesh).median_mm) if mesh_index else None,

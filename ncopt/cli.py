@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import sys
 import tempfile
@@ -169,6 +170,41 @@ def _print_summary(s: Summary) -> None:
         err.print(f"warning: {w}", markup=False)
     if len(s.warnings) > 10:
         err.print(f"warning: {len(s.warnings) - 10} more warnings")
+
+
+@app.command()
+def inspect(
+    program: str = typer.Argument(..., help="NC program, or - for stdin."),
+    as_json: bool = typer.Option(False, "--json", help="One JSON object on stdout."),
+) -> None:
+    """Show what ncopt understands of a program before it changes anything."""
+    from .inspect import inspect_text
+
+    try:
+        data = sys.stdin.buffer.read() if program == "-" else _read(program)
+        info = inspect_text(data.decode("latin-1"), program)
+    except NcoptError as exc:
+        _fail(exc)
+    if as_json:
+        print(json.dumps(info.to_dict(), indent=2))
+        return
+    out = Console(highlight=False, soft_wrap=True)
+    out.print(f"{info.path}: {info.dialect} dialect, {info.units}, {info.lines} lines", markup=False)
+    out.print(f"  blocks {info.blocks}, moves {info.moves} (feed {info.feed_moves}, rapid "
+              f"{info.rapids}, arcs {info.arcs}), not plannable {info.unknown_moves}")
+    for t in info.tools:
+        out.print(f"  tool T{t[0]}: {t[1]} D{t[2]:g} r{t[3]:g} (line {t[4]})", markup=False)
+    out.print(f"  tools cutting: {', '.join(f'T{t}' for t in info.tools_used) or 'none'}")
+    out.print(f"  S {info.s_range_rpm[0]:g}..{info.s_range_rpm[1]:g} RPM, "
+              f"F {info.f_range_mm_min[0]:g}..{info.f_range_mm_min[1]:g} mm/min")
+    out.print(f"  cutting {info.cut_length_mm:.0f} mm in {info.cut_time_min:.1f} min at the "
+              "programmed feed")
+    for line, why in info.opaque[:20]:
+        out.print(f"  line {line}: '{why}' left alone", markup=False)
+    if len(info.opaque) > 20:
+        out.print(f"  ... {len(info.opaque) - 20} more lines left alone")
+    for w in info.warnings[:20]:
+        out.print(f"  warning: {w}", markup=False)
 
 
 @app.command()

@@ -47,20 +47,15 @@ def sample_points(tp: Toolpath, sample_mm: float) -> tuple[np.ndarray, np.ndarra
 
 
 def air_moves(tp: Toolpath) -> np.ndarray:
-    """(n,) bool: feed moves that cannot be cutting when no mesh says otherwise.
+    """(n,) bool: feed moves that cannot be cutting when no mesh says otherwise:
+    plunges and retracts (within 11 deg of vertical).
 
-    Plunges and retracts (within 11 deg of vertical) and moves that start and end
-    at or above the lowest rapid height (the clearance plane).
+    Other air moves are planned like cuts: with no neighbouring pass their
+    normal is that of the move itself, which can only make them run faster.
     """
     d = np.diff(tp.xyz_mm, axis=0)
     length = np.linalg.norm(d, axis=1)
-    steep = np.concatenate(([False], np.abs(d[:, 2]) > 0.98 * np.maximum(length, 1e-12)))
-    rapid_z = tp.xyz_mm[(tp.motion == Motion.RAPID) & tp.known, 2]
-    if rapid_z.size == 0:
-        return steep
-    clear_z = float(np.min(rapid_z)) - 1e-6
-    start_z = np.concatenate(([np.inf], tp.xyz_mm[:-1, 2]))
-    return steep | ((tp.xyz_mm[:, 2] >= clear_z) & (start_z >= clear_z))
+    return np.concatenate(([False], np.abs(d[:, 2]) > 0.98 * np.maximum(length, 1e-12)))
 
 
 def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index: MeshIndex | None,

@@ -1,0 +1,75 @@
+"""What ncopt understands of a program before it changes anything."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from .dialect import detect
+from .interp import interpret
+from .model import LineKind, Motion
+from .parse import parse_text
+from .tooltable import tool_table
+
+
+@dataclass(frozen=True)
+class Inspection:
+    """A program as ncopt reads it.  Lengths in mm, feeds in mm/min, times in min."""
+
+    path: str
+    dialect: str
+    dialect_marks: tuple
+    units: str
+    lines: int
+    blocks: int
+    moves: int
+    feed_moves: int
+    rapids: int
+    arcs: int
+    unknown_moves: int
+    tools: tuple  # (T, kind, diameter, corner radius, line) from the comments
+    tools_used: tuple  # T numbers with feed moves
+    opaque: tuple  # (line, construct) left alone
+    warnings: tuple
+    s_range_rpm: tuple
+    f_range_mm_min: tuple
+    cut_length_mm: float
+    cut_time_min: float
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def inspect_text(text: str, path: str = "<input>") -> Inspection:
+    """Parse and interpret; raises a located NcoptError when the program is unreadable."""
+    prog = parse_text(text, path)
+    tp = interpret(prog)
+    found = detect(text)
+    motion = tp.motion[1:]
+    feed = np.isin(motion, [Motion.LINEAR, Motion.ARC_CW, Motion.ARC_CCW])
+    arcs = np.isin(motion, [Motion.ARC_CW, Motion.ARC_CCW])
+    lines_with_arcs = np.unique(tp.line[1:][arcs])
+    known = tp.known[1:]
+    cut = feed & known & (tp.feed_mm_min[1:] > 0)
+    length = tp.seg_len_mm[1:]
+    s_on = tp.spindle_rpm[1:][feed & tp.spindle_on[1:]]
+    f_vals = tp.feed_mm_min[1:][feed]
+    f_vals = f_vals[np.isfinite(f_vals)]
+    units = "inch" if tp.line_inch is not None and tp.line_inch.any() else "mm"
+    table = tool_table(prog)
+    return Inspection(
+        path=path, dialect=found.name, dialect_marks=found.marks, units=units,
+        lines=prog.n_lines, blocks=int(np.sum(prog.line_kind == LineKind.WORDS)),
+        moves=int(np.unique(tp.line[1:]).size), feed_moves=int(np.unique(tp.line[1:][feed]).size),
+        rapids=int(np.unique(tp.line[1:][motion == Motion.RAPID]).size),
+        arcs=int(lines_with_arcs.size), unknown_moves=int(np.unique(tp.line[1:][~known]).size),
+        tools=tuple((t.number, t.kind, t.diameter, t.corner_radius, t.line)
+                    for t in table.values()),
+        tools_used=tuple(int(t) for t in np.unique(tp.tool[1:][feed])),
+        opaque=tuple((i + 1, why) for i, why in sorted(prog.opaque_reason.items())),
+        warnings=tp.warnings,
+        s_range_rpm=(float(s_on.min()), float(s_on.max())) if s_on.size else (0.0, 0.0),
+        f_range_mm_min=(float(f_vals.min()), float(f_vals.max())) if f_vals.size else (0.0, 0.0),
+        cut_length_mm=float(length[cut].sum()),
+        cut_time_min=float(np.sum(length[cut] / tp.feed_mm_min[1:][cut])))
