@@ -208,6 +208,27 @@ def inspect(
 
 
 @app.command()
+def diff(
+    original: str = typer.Argument(..., help="The original program."),
+    rewritten: str = typer.Argument(..., help="The rewritten program."),
+    plain: bool = typer.Option(False, "--plain", help="Unified diff even on a terminal."),
+) -> None:
+    """Show which blocks changed: side by side on a terminal, a unified diff otherwise."""
+    from .diffview import render_side_by_side, write_unified
+
+    try:
+        a = _read(original).decode("latin-1").splitlines()
+        b = _read(rewritten).decode("latin-1").splitlines()
+    except NcoptError as exc:
+        _fail(exc)
+    out = Console(highlight=False)
+    if plain or not out.is_terminal:
+        write_unified(original, rewritten, a, b, sys.stdout)
+    else:
+        render_side_by_side(original, rewritten, a, b, out)
+
+
+@app.command()
 def version() -> None:
     """Print the ncopt version."""
     print(__version__)

@@ -1,0 +1,134 @@
+"""Original vs rewritten program: side by side on a terminal, unified diff otherwise.
+
+Streams: rows are rendered as they are found, unchanged runs are folded into
+one line with their count, so a 1M-line program never has its rendering
+built in memory.
+"""
+
+from __future__ import annotations
+
+import difflib
+import re
+from dataclasses import dataclass
+from itertools import zip_longest
+from typing import Iterator, TextIO
+
+from rich.console import Console
+from rich.text import Text
+
+_TOKEN = re.compile(r"\s+|\([^)]*\)|;.*|[A-Za-z]\s*[-+]?[\d.]+|.")
+CONTEXT = 1
+
+
+@dataclass(frozen=True)
+class DiffTotals:
+    """What changed between two programs with the same lines."""
+
+    lines: int
+    changed: int
+    s_changed: int
+    f_changed: int
+
+
+def _split(data: bytes) -> list[str]:
+    return data.decode("latin-1").splitlines()
+
+
+def changed_words(a: str, b: str) -> tuple[list[tuple[str, bool]], list[tuple[str, bool]]]:
+    """Tokens of two lines, each flagged when it differs from the other line."""
+    ta, tb = _TOKEN.findall(a), _TOKEN.findall(b)
+    sm = difflib.SequenceMatcher(a=ta, b=tb, autojunk=False)
+    fa = [(t, True) for t in ta]
+    fb = [(t, True) for t in tb]
+    for block in sm.get_matching_blocks():
+        for k in range(block.size):
+            fa[block.a + k] = (ta[block.a + k], False)
+            fb[block.b + k] = (tb[block.b + k], False)
+    return fa, fb
+
+
+def totals(a_lines: list[str], b_lines: list[str]) -> DiffTotals:
+    changed = s = f = 0
+    for a, b in zip_longest(a_lines, b_lines, fillvalue=""):
+        if a == b:
+            continue
+        changed += 1
+        _, fb = changed_words(a, b)
+        letters = {t.strip()[:1].upper() for t, diff in fb if diff and t.strip()}
+        s += "S" in letters
+        f += "F" in letters
+    return DiffTotals(max(len(a_lines), len(b_lines)), changed, s, f)
+
+
+def _rows(a_lines: list[str], b_lines: list[str]) -> Iterator[tuple]:
+    """(kind, number_a, text_a, number_b, text_b) rows; kind 'fold' carries a count."""
+    if len(a_lines) != len(b_lines):
+        yield from _rows_difflib(a_lines, b_lines)
+        return
+    n = len(a_lines)
+    diff = [i for i in range(n) if a_lines[i] != b_lines[i]]
+    shown = 0
+    for k, i in enumerate(diff):
+        lo = max(i - CONTEXT, shown)
+        if lo > shown:
+            yield ("fold", lo - shown)
+        for j in range(lo, i):
+            yield ("same", j + 1, a_lines[j], j + 1, b_lines[j])
+        yield ("change", i + 1, a_lines[i], i + 1, b_lines[i])
+        nxt = diff[k + 1] if k + 1 < len(diff) else n
+        hi = min(i + 1 + CONTEXT, nxt)
+        for j in range(i + 1, hi):
+            yield ("same", j + 1, a_lines[j], j + 1, b_lines[j])
+        shown = hi
+    if shown < n:
+        yield ("fold", n - shown)
+
+
+def _rows_difflib(a_lines, b_lines) -> Iterator[tuple]:
+    sm = difflib.SequenceMatcher(a=a_lines, b=b_lines, autojunk=False)
+    for tag, i1, i2, j1, j2 in sm.get_opcodes():
+        if tag == "equal":
+            yield ("fold", i2 - i1)
+            continue
+        for a, b in zip_longest(range(i1, i2), range(j1, j2)):
+            yield ("change", None if a is None else a + 1, "" if a is None else a_lines[a],
+                   None if b is None else b + 1, "" if b is None else b_lines[b])
+
+
+def render_side_by_side(a_name: str, b_name: str, a_lines, b_lines, console: Console,
+                        header: str = "") -> DiffTotals:
+    """Two columns with line numbers; changed words highlighted; unchanged runs folded."""
+    t = totals(a_lines, b_lines)
+    console.print(Text(f"{a_name} -> {b_name}: {t.changed} of {t.lines} lines changed "
+                       f"(S in {t.s_changed}, F in {t.f_changed}){header}", style="bold"))
+    width = max((console.width - 14) // 2, 20)
+    for row in _rows(a_lines, b_lines):
+        if row[0] == "fold":
+            console.print(Text(f"  ··· {row[1]} unchanged lines ···", style="dim"))
+            continue
+        kind, na, ta, nb, tb = row
+        left, right = Text(no_wrap=True, overflow="ellipsis"), Text(no_wrap=True, overflow="ellipsis")
+        if kind == "change":
+            fa, fb = changed_words(ta, tb)
+            for tok, diff in fa:
+                left.append(tok, style="bold red" if diff else None)
+            for tok, diff in fb:
+                right.append(tok, style="bold green" if diff else None)
+        else:
+            left.append(ta, style="dim")
+            right.append(tb, style="dim")
+        left.truncate(width, pad=True)
+        right.truncate(width, pad=True)
+        row_text = Text(f"{na or '':>6} ", style="cyan")
+        row_text.append_text(left)
+        row_text.append(" │ " if kind == "same" else " ┃ ", style="yellow" if kind == "change" else "dim")
+        row_text.append_text(right)
+        console.print(row_text, no_wrap=True, overflow="ellipsis")
+    return t
+
+
+def write_unified(a_name: str, b_name: str, a_lines, b_lines, out: TextIO) -> DiffTotals:
+    """A plain unified diff (what patch and review tools read)."""
+    for line in difflib.unified_diff(a_lines, b_lines, a_name, b_name, lineterm="", n=CONTEXT):
+        out.write(line + "\n")
+    return totals(a_lines, b_lines)
