@@ -17,7 +17,7 @@ import numpy as np
 
 from . import planner
 from .contacts import Sampled, contacts_for
-from .errors import PlanningError, UsageError, VerificationError
+from .errors import NothingToPlan, PlanningError, UsageError, VerificationError
 from .geometry import MeshIndex, load_stl, mesh_resolution_mm
 from .interp import interpret
 from .model import Cutter, CuttingData, Machine, Motion, PlanOptions, Program, Toolpath
@@ -164,11 +164,12 @@ def _plan_tools(prog, tp, idx, job, mesh_index):
             skipped.append((tool, why))
             continue
         selected = plannable & (tp.tool == tool)
-        plans.append(_plan_tool(tp, idx, job, mesh_index, tool, cutter, source, selected))
+        plans.append(_plan_tool(tp, idx, job, mesh_index, tool, cutter, source, selected,
+                                prog.path))
     if not plans:
         why = "; ".join(f"{_tool_name(t)}: {w}" for t, w in skipped) or "no feed moves with a " \
             "running spindle and a known position"
-        raise PlanningError(f"nothing to plan ({why})", prog.path)
+        raise NothingToPlan(f"nothing to plan ({why})", prog.path)
     return plans, skipped
 
 
@@ -193,8 +194,8 @@ def _cutter(job, table, tool, n_tools, line_inch):
     return info.cutter(job.teeth, scale), f"line {info.line}: ({info.text.strip()})", ""
 
 
-def _plan_tool(tp, idx, job, mesh_index, tool, cutter, source, selected) -> ToolPlan:
-    cut = job.cutting or nominal_cutting_data(tp, selected, cutter, "<program>")
+def _plan_tool(tp, idx, job, mesh_index, tool, cutter, source, selected, path) -> ToolPlan:
+    cut = job.cutting or nominal_cutting_data(tp, selected, cutter, path)
     sampled = contacts_for(tp, cutter, selected, mesh_index, job.options.sample_mm,
                            job.contact_tol_mm)
     c = sampled.contacts

@@ -8,14 +8,15 @@ import sys
 import tempfile
 from enum import IntEnum
 from pathlib import Path
-from typing import Optional
+from typing import Annotated, Optional
 
 import typer
 from rich.console import Console
 
 from . import __version__
 from .api import Job, Summary, rewrite_file
-from .errors import MeshError, NcoptError, NcParseError, PlanningError, UsageError, VerificationError
+from .errors import (MeshError, NcoptError, NcParseError, PlanningError, UsageError,
+                     VerificationError)
 from .model import Cutter, CuttingData, Machine, PlanOptions
 
 
@@ -30,15 +31,42 @@ class Exit(IntEnum):
     PLANNING = 5
     VERIFICATION = 6  # the rewrite failed its own checks; nothing written
     IO = 7
+    SOME_FAILED = 8  # batch: some files failed, the others were written
+    NOTHING_DONE = 9  # batch: no program found, or every file failed
+    INTERRUPTED = 130
 
 
 app = typer.Typer(add_completion=False, pretty_exceptions_show_locals=False,
                   help="Rewrite S and F words of finishing programs for constant vc and fz.")
 err = Console(stderr=True, highlight=False, soft_wrap=True)
 
+# options shared by rewrite, batch and simulate
+Mesh = Annotated[Optional[Path], typer.Option(
+    "--mesh", help="Part mesh (STL, binary or ASCII), mm. Without it, normals come from "
+    "the toolpath.")]
+Diameter = Annotated[Optional[float], typer.Option(
+    "--diameter", help="Cutter diameter D, mm (default: from the program's tool comments).")]
+CornerRadius = Annotated[Optional[float], typer.Option(
+    "--corner-radius", help="Bull-nose corner radius r, mm (default: a ball).")]
+Teeth = Annotated[int, typer.Option("--teeth", help="Number of teeth z (matters with --fz).")]
+Vc = Annotated[Optional[float], typer.Option(
+    "--vc", help="Cutting speed target, m/min (default: the program's S at the nominal D).")]
+Fz = Annotated[Optional[float], typer.Option(
+    "--fz", help="Feed per tooth target, mm (default: the program's F / (z S)).")]
+Accel = Annotated[float, typer.Option("--accel", help="Spindle acceleration, rad/s^2.")]
+MaxRpm = Annotated[float, typer.Option("--max-rpm", help="Highest spindle speed, RPM.")]
+MinRpm = Annotated[float, typer.Option("--min-rpm", help="Lowest spindle speed, RPM.")]
+MaxFeed = Annotated[float, typer.Option("--max-feed", help="Highest feed, mm/min.")]
+Planner = Annotated[str, typer.Option("--planner", help="lookahead or forward.")]
+ToolPoint = Annotated[str, typer.Option("--tool-point", help="Programmed point: tip or center.")]
+MinStep = Annotated[float, typer.Option(
+    "--min-rpm-step", help="Emit S only when it changes by at least this, RPM.")]
+Tool = Annotated[Optional[int], typer.Option("--tool", help="Plan only this T number.")]
+Rapid = Annotated[float, typer.Option("--rapid", help="Rapid traverse rate, mm/min.")]
+
 
 def _exit_code(exc: NcoptError) -> Exit:
-    for kind, code in ((UsageError, Exit.USAGE), (MeshError, Exit.MESH),
+    for kind, code in ((_IoError, Exit.IO), (UsageError, Exit.USAGE), (MeshError, Exit.MESH),
                        (PlanningError, Exit.PLANNING), (VerificationError, Exit.VERIFICATION),
                        (NcParseError, Exit.PROGRAM)):
         if isinstance(exc, kind):
@@ -51,49 +79,16 @@ def _fail(exc: NcoptError) -> None:
     raise typer.Exit(int(_exit_code(exc)))
 
 
-@app.command()
-def rewrite(
-    input: str = typer.Argument(..., help="NC program to rewrite, or - for stdin."),
-    output: Optional[str] = typer.Option(None, "-o", "--output",
-                                         help="Where to write; - or omitted: stdout."),
-    mesh: Optional[Path] = typer.Option(None, "--mesh", help="Part mesh (STL, binary or "
-                                        "ASCII), mm. Without it, normals come from the toolpath."),
-    diameter: Optional[float] = typer.Option(None, "--diameter", help="Cutter diameter D, mm "
-                                             "(default: from the program's tool comments)."),
-    corner_radius: Optional[float] = typer.Option(None, "--corner-radius",
-                                                  help="Bull-nose corner radius r, mm (default: ball)."),
-    teeth: int = typer.Option(2, "--teeth", help="Number of teeth z (matters only with --fz)."),
-    vc: Optional[float] = typer.Option(None, "--vc", help="Cutting speed target, m/min "
-                                       "(default: the program's S at the nominal diameter)."),
-    fz: Optional[float] = typer.Option(None, "--fz", help="Feed per tooth target, mm "
-                                       "(default: the program's F / (z S))."),
-    accel: float = typer.Option(..., "--accel", help="Spindle acceleration, rad/s^2."),
-    max_rpm: float = typer.Option(..., "--max-rpm", help="Highest spindle speed, RPM."),
-    min_rpm: float = typer.Option(0.0, "--min-rpm", help="Lowest spindle speed, RPM."),
-    max_feed: float = typer.Option(float("inf"), "--max-feed", help="Highest feed, mm/min."),
-    planner: str = typer.Option("lookahead", "--planner", help="lookahead or forward."),
-    tool_point: str = typer.Option("tip", "--tool-point", help="Programmed point: tip or center."),
-    min_rpm_step: float = typer.Option(10.0, "--min-rpm-step", help="Emit S only when it "
-                                       "changes by at least this, RPM."),
-    tool: Optional[int] = typer.Option(None, "--tool", help="Plan only this T number."),
-    rapid: float = typer.Option(10000.0, "--rapid", help="Rapid traverse rate, mm/min."),
-    quiet: bool = typer.Option(False, "--quiet", "-q", help="No summary on stderr."),
-) -> None:
-    """Rewrite a program's S and F words; every other byte stays as it is."""
-    try:
-        job = _job(diameter, corner_radius, teeth, vc, fz, accel, max_rpm, min_rpm, max_feed,
-                   planner, tool_point, min_rpm_step, tool, rapid)
-        data = sys.stdin.buffer.read() if input == "-" else _read(input)
-        result = rewrite_file("-" if input == "-" else input, job, mesh_path=mesh, data=data)
-        _write(output, result.text.encode("latin-1"), input)
-    except NcoptError as exc:
-        _fail(exc)
-    if not quiet:
-        _print_summary(result.summary)
+class _IoError(UsageError):
+    """A file cannot be read or written."""
 
 
-def _job(diameter, corner_radius, teeth, vc, fz, accel, max_rpm, min_rpm, max_feed, planner,
-         tool_point, min_rpm_step, tool, rapid) -> Job:
+def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel=None,
+             max_rpm=None, min_rpm=0.0, max_feed=float("inf"), planner="lookahead",
+             tool_point="tip", min_rpm_step=10.0, tool=None, rapid=10000.0) -> Job:
+    """A Job from command-line values, checked; raises UsageError."""
+    if accel is None or max_rpm is None:
+        raise UsageError("give the spindle: --accel RAD_S2 and --max-rpm RPM")
     if planner not in ("lookahead", "forward"):
         raise UsageError(f"--planner must be lookahead or forward, not {planner!r}")
     if tool_point not in ("tip", "center"):
@@ -105,26 +100,22 @@ def _job(diameter, corner_radius, teeth, vc, fz, accel, max_rpm, min_rpm, max_fe
                          "half the diameter")
     if (vc is None) != (fz is None):
         raise UsageError("give both --vc and --fz, or neither (then the program's S and F set them)")
+    if vc is not None and (vc <= 0 or fz <= 0):
+        raise UsageError("--vc and --fz must be positive")
     if min_rpm > max_rpm:
         raise UsageError("--min-rpm is above --max-rpm")
-    cutting = CuttingData(vc, fz) if vc is not None else None
-    if cutting is not None and (vc <= 0 or fz <= 0):
-        raise UsageError("--vc and --fz must be positive")
     cutter = Cutter(diameter, teeth, corner_radius, tool_point) if diameter is not None else None
     return Job(cutter=cutter, machine=Machine(accel, max_rpm, min_rpm, max_feed, rapid),
-               cutting=cutting, options=PlanOptions(planner=planner, min_rpm_step=min_rpm_step),
-               tool=tool, teeth=teeth)
+               cutting=CuttingData(vc, fz) if vc is not None else None,
+               options=PlanOptions(planner=planner, min_rpm_step=min_rpm_step), tool=tool,
+               teeth=teeth)
 
 
 def _read(path: str) -> bytes:
     try:
         return Path(path).read_bytes()
     except OSError as exc:
-        raise _IoError(f"cannot read the program: {exc.strerror}; check the path", path) from None
-
-
-class _IoError(UsageError):
-    pass
+        raise _IoError(f"cannot read the file: {exc.strerror}; check the path", path) from None
 
 
 def _write(output: Optional[str], data: bytes, input: str) -> None:
@@ -135,50 +126,124 @@ def _write(output: Optional[str], data: bytes, input: str) -> None:
         return
     target = Path(output)
     if input != "-" and target.exists() and target.resolve() == Path(input).resolve():
-        raise UsageError("the output would overwrite the input; write to another file", output)
+        raise UsageError("the output would overwrite the input; write to another file "
+                         "(or use ncopt batch --in-place, which keeps a backup)", output)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp",
-                                   dir=target.parent if str(target.parent) else ".")
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".ncopt-tmp",
+                                   dir=str(target.parent))
         with os.fdopen(fd, "wb") as handle:
             handle.write(data)
         os.replace(tmp, target)
     except OSError as exc:
-        raise UsageError(f"cannot write the output: {exc.strerror}", output) from None
+        raise _IoError(f"cannot write the output: {exc.strerror}", output) from None
 
 
-def _print_summary(s: Summary) -> None:
-    err.print(f"ncopt: {s.blocks} blocks, {s.cutting_blocks} cutting blocks planned, "
-              f"{s.s_words} S and {s.f_words} F words written")
+@app.command()
+def rewrite(
+    input: Annotated[str, typer.Argument(help="NC program to rewrite, or - for stdin.")],
+    output: Annotated[Optional[str], typer.Option(
+        "-o", "--output", help="Where to write; - or omitted: stdout.")] = None,
+    mesh: Mesh = None, diameter: Diameter = None, corner_radius: CornerRadius = None,
+    teeth: Teeth = 2, vc: Vc = None, fz: Fz = None, accel: Accel = None,
+    max_rpm: MaxRpm = None, min_rpm: MinRpm = 0.0, max_feed: MaxFeed = float("inf"),
+    planner: Planner = "lookahead", tool_point: ToolPoint = "tip", min_rpm_step: MinStep = 10.0,
+    tool: Tool = None, rapid: Rapid = 10000.0,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary on stderr.")] = False,
+) -> None:
+    """Rewrite a program's S and F words; every other byte stays as it is."""
+    try:
+        job = make_job(diameter, corner_radius, teeth, vc, fz, accel, max_rpm, min_rpm,
+                       max_feed, planner, tool_point, min_rpm_step, tool, rapid)
+        data = sys.stdin.buffer.read() if input == "-" else _read(input)
+        result = rewrite_file(input, job, mesh_path=mesh, data=data)
+        _write(output, result.text.encode("latin-1"), input)
+    except NcoptError as exc:
+        _fail(exc)
+    if not quiet:
+        print_summary(result.summary, err)
+
+
+def print_summary(s: Summary, console: Console) -> None:
+    """The few lines a machinist reads after a rewrite."""
+    say = lambda text: console.print(text, markup=False)  # noqa: E731
+    say(f"ncopt: {s.blocks} blocks, {s.cutting_blocks} cutting blocks planned, "
+        f"{s.s_words} S and {s.f_words} F words written")
     for tool, what, source in s.tools:
-        err.print(f"ncopt: T{tool}: {what} ({'from ' + source if source != 'options' else 'from the options'})",
-                  markup=False)
+        name = f"T{tool}" if tool >= 0 else "tool"
+        say(f"ncopt: {name}: {what} (from {'the options' if source == 'options' else source})")
     for tool, why in s.skipped_tools:
-        err.print(f"ncopt: T{tool} left untouched: {why}", markup=False)
-    err.print(f"ncopt: vc {s.vc_m_min:.1f} m/min, fz {s.fz_mm:.4f} mm, highest S {s.max_s_rpm:.0f} RPM")
-    err.print(f"ncopt: estimated cutting time {s.cut_time_before_min:.1f} -> "
-              f"{s.cut_time_after_min:.1f} min ({s.time_change_pct:+.1f} %)")
+        say(f"ncopt: T{tool} left untouched: {why}")
+    say(f"ncopt: vc {s.vc_m_min:.1f} m/min, fz {s.fz_mm:.4f} mm, highest S {s.max_s_rpm:.0f} RPM")
+    say(f"ncopt: estimated cutting time {s.cut_time_before_min:.1f} -> "
+        f"{s.cut_time_after_min:.1f} min ({s.time_change_pct:+.1f} %)")
     if s.mesh_edge_mm is not None:
-        err.print(f"ncopt: mesh median edge {s.mesh_edge_mm:.2f} mm")
+        say(f"ncopt: mesh median edge {s.mesh_edge_mm:.2f} mm")
     if s.normals_from == "toolpath":
-        err.print(f"ncopt: no mesh: normals from the toolpath (stepover {s.stepover_mm:.2f} mm); "
-                  f"{s.one_sided_points} points at the edge of the machined area planned "
-                  "conservatively")
+        say(f"ncopt: no mesh: normals from the toolpath (stepover {s.stepover_mm:.2f} mm); "
+            f"{s.one_sided_points} points at the edge of the machined area planned conservatively")
         if s.no_cross_points:
-            err.print(f"ncopt: {s.no_cross_points} cutting points have no neighbouring pass: "
-                      "their cross-slope is unknown and taken as zero")
+            say(f"ncopt: {s.no_cross_points} cutting points have no neighbouring pass: their "
+                "cross-slope is unknown and taken as zero")
     for w in s.warnings[:10]:
-        err.print(f"warning: {w}", markup=False)
+        say(f"warning: {w}")
     if len(s.warnings) > 10:
-        err.print(f"warning: {len(s.warnings) - 10} more warnings")
+        say(f"warning: {len(s.warnings) - 10} more warnings")
+
+
+@app.command()
+def batch(
+    inputs: Annotated[str, typer.Argument(help="A folder (searched recursively) or a glob.")],
+    output: Annotated[Optional[Path], typer.Option("-o", "--output", help="Output folder; "
+                                                   "subfolders are mirrored.")] = None,
+    jobs: Annotated[int, typer.Option("--jobs", "-j", help="Parallel processes.")] = 0,
+    in_place: Annotated[bool, typer.Option("--in-place", help="Replace the originals "
+                                           "(a backup NAME.bak is kept).")] = False,
+    report: Annotated[Optional[Path], typer.Option("--report", help="Write a JSON report.")] = None,
+    mesh: Mesh = None, diameter: Diameter = None, corner_radius: CornerRadius = None,
+    teeth: Teeth = 2, vc: Vc = None, fz: Fz = None, accel: Accel = None,
+    max_rpm: MaxRpm = None, min_rpm: MinRpm = 0.0, max_feed: MaxFeed = float("inf"),
+    planner: Planner = "lookahead", tool_point: ToolPoint = "tip", min_rpm_step: MinStep = 10.0,
+    tool: Tool = None, rapid: Rapid = 10000.0,
+) -> None:
+    """Rewrite every program of a folder in parallel; one bad file never stops the others."""
+    from .batch import find_programs, run_batch, target_for
+    from .batchview import BatchView
+
+    try:
+        job = make_job(diameter, corner_radius, teeth, vc, fz, accel, max_rpm, min_rpm,
+                       max_feed, planner, tool_point, min_rpm_step, tool, rapid)
+        base, files = find_programs(inputs)
+        if in_place and output is not None:
+            raise UsageError("give either -o OUTDIR or --in-place, not both")
+        tasks = [(str(f), str(target_for(f, base, output, in_place)), job, mesh,
+                  ".bak" if in_place else None) for f in files]
+    except NcoptError as exc:
+        _fail(exc)
+    if not tasks:
+        err.print(f"ncopt: no NC programs found in {inputs}", markup=False)
+        raise typer.Exit(int(Exit.NOTHING_DONE))
+    view = BatchView(err, files)
+    try:
+        with view:
+            reports = run_batch(tasks, jobs or os.cpu_count() or 1, view.done)
+    except KeyboardInterrupt:
+        err.print("ncopt: interrupted; finished files are complete, no partial file was left")
+        raise typer.Exit(int(Exit.INTERRUPTED))
+    view.table(reports, base)
+    if report is not None:
+        report.write_text(json.dumps([r.to_dict() for r in reports], indent=2))
+    failed = sum(r.status == "failed" for r in reports)
+    raise typer.Exit(int(Exit.OK if failed == 0 else
+                         Exit.NOTHING_DONE if failed == len(reports) else Exit.SOME_FAILED))
 
 
 @app.command()
 def inspect(
-    program: str = typer.Argument(..., help="NC program, or - for stdin."),
-    as_json: bool = typer.Option(False, "--json", help="One JSON object on stdout."),
+    program: Annotated[str, typer.Argument(help="NC program, or - for stdin.")],
+    as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
 ) -> None:
     """Show what ncopt understands of a program before it changes anything."""
-    from .inspect import inspect_text
+    from .inspect import inspect_text, render_inspection
 
     try:
         data = sys.stdin.buffer.read() if program == "-" else _read(program)
@@ -187,31 +252,15 @@ def inspect(
         _fail(exc)
     if as_json:
         print(json.dumps(info.to_dict(), indent=2))
-        return
-    out = Console(highlight=False, soft_wrap=True)
-    out.print(f"{info.path}: {info.dialect} dialect, {info.units}, {info.lines} lines", markup=False)
-    out.print(f"  blocks {info.blocks}, moves {info.moves} (feed {info.feed_moves}, rapid "
-              f"{info.rapids}, arcs {info.arcs}), not plannable {info.unknown_moves}")
-    for t in info.tools:
-        out.print(f"  tool T{t[0]}: {t[1]} D{t[2]:g} r{t[3]:g} (line {t[4]})", markup=False)
-    out.print(f"  tools cutting: {', '.join(f'T{t}' for t in info.tools_used) or 'none'}")
-    out.print(f"  S {info.s_range_rpm[0]:g}..{info.s_range_rpm[1]:g} RPM, "
-              f"F {info.f_range_mm_min[0]:g}..{info.f_range_mm_min[1]:g} mm/min")
-    out.print(f"  cutting {info.cut_length_mm:.0f} mm in {info.cut_time_min:.1f} min at the "
-              "programmed feed")
-    for line, why in info.opaque[:20]:
-        out.print(f"  line {line}: '{why}' left alone", markup=False)
-    if len(info.opaque) > 20:
-        out.print(f"  ... {len(info.opaque) - 20} more lines left alone")
-    for w in info.warnings[:20]:
-        out.print(f"  warning: {w}", markup=False)
+    else:
+        render_inspection(info, Console(highlight=False, soft_wrap=True))
 
 
 @app.command()
 def diff(
-    original: str = typer.Argument(..., help="The original program."),
-    rewritten: str = typer.Argument(..., help="The rewritten program."),
-    plain: bool = typer.Option(False, "--plain", help="Unified diff even on a terminal."),
+    original: Annotated[str, typer.Argument(help="The original program.")],
+    rewritten: Annotated[str, typer.Argument(help="The rewritten program.")],
+    plain: Annotated[bool, typer.Option("--plain", help="Unified diff even on a terminal.")] = False,
 ) -> None:
     """Show which blocks changed: side by side on a terminal, a unified diff otherwise."""
     from .diffview import render_side_by_side, write_unified

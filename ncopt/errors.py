@@ -47,6 +47,10 @@ class PlanningError(NcoptError):
     """The cutting data or the machine limits make planning impossible."""
 
 
+class NothingToPlan(PlanningError):
+    """No move of the program is one ncopt can plan (no ball/bull-nose cut, no known position)."""
+
+
 class UsageError(NcoptError):
     """Options that contradict each other or are missing."""
 

@@ -73,3 +73,24 @@ def inspect_text(text: str, path: str = "<input>") -> Inspection:
         f_range_mm_min=(float(f_vals.min()), float(f_vals.max())) if f_vals.size else (0.0, 0.0),
         cut_length_mm=float(length[cut].sum()),
         cut_time_min=float(np.sum(length[cut] / tp.feed_mm_min[1:][cut])))
+
+
+def render_inspection(info: Inspection, out) -> None:
+    """The inspection as a few readable lines on a rich console."""
+    say = lambda text: out.print(text, markup=False)  # noqa: E731
+    say(f"{info.path}: {info.dialect} dialect, {info.units}, {info.lines} lines")
+    say(f"  blocks {info.blocks}, moves {info.moves} (feed {info.feed_moves}, rapid "
+        f"{info.rapids}, arcs {info.arcs}), not plannable {info.unknown_moves}")
+    for t in info.tools:
+        say(f"  tool T{t[0]}: {t[1]} D{t[2]:g} r{t[3]:g} (line {t[4]})")
+    say(f"  tools cutting: {', '.join(f'T{t}' for t in info.tools_used) or 'none'}")
+    say(f"  S {info.s_range_rpm[0]:g}..{info.s_range_rpm[1]:g} RPM, "
+        f"F {info.f_range_mm_min[0]:g}..{info.f_range_mm_min[1]:g} mm/min")
+    say(f"  cutting {info.cut_length_mm:.0f} mm in {info.cut_time_min:.1f} min at the "
+        "programmed feed")
+    for line, why in info.opaque[:20]:
+        say(f"  line {line}: '{why}' left alone")
+    if len(info.opaque) > 20:
+        say(f"  ... {len(info.opaque) - 20} more lines left alone")
+    for w in info.warnings[:20]:
+        say(f"  warning: {w}")

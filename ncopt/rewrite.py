@@ -62,11 +62,12 @@ def detect_style(prog: Program, letter: int, default_decimals: int = 0) -> WordS
 
 def _separator(prog: Program) -> str:
     """' ' if the program separates words by blanks, '' for ``N40G90X1.`` style."""
-    starts, ends = prog.word_start[:5000], prog.word_end[:5000]
-    same = prog.word_line[1:5000] == prog.word_line[:4999]
+    n = min(prog.n_words, 5000)
+    line, starts, ends = prog.word_line[:n], prog.word_start[:n], prog.word_end[:n]
+    same = line[1:] == line[:-1]
     if not same.any():
         return " "
-    gaps = starts[1:][same[: starts.shape[0] - 1]] - ends[:-1][same[: starts.shape[0] - 1]]
+    gaps = starts[1:][same] - ends[:-1][same]
     return " " if np.mean(gaps > 0) >= 0.5 else ""
 
 
