@@ -129,11 +129,14 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     prog = parse_text(text, path)
     tp = interpret(prog)
     idx = planner.block_index(tp.line)
-    plans, skipped = _plan_tools(prog, tp, idx, job, mesh_index)
     s_style = detect_style(prog, S_CODE)
     f_style = detect_style(prog, F_CODE, default_decimals=1)
-    if tp.line_inch is not None and tp.line_inch.any() and f_style.decimals < 2:
+    inch = tp.line_inch is not None and bool(tp.line_inch.any())
+    if inch and f_style.decimals < 2:
         f_style = replace(f_style, decimals=2, trailing_point=False)  # inch/min needs them
+    quantum = 10.0 ** -f_style.decimals * (MM_PER_INCH if inch else 1.0)
+    job = replace(job, options=replace(job.options, f_quantum_mm_min=quantum))
+    plans, skipped = _plan_tools(prog, tp, idx, job, mesh_index)
     targets = _targets(tp, idx, plans, f_style)
     edits = plan_edits(prog, targets, s_style, f_style)
     out = apply_edits(text, edits)

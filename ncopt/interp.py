@@ -70,6 +70,7 @@ def interpret(prog: Program, start: StartState = StartState()) -> Toolpath:
     _check_semantics(prog, lines, executed)
     modal = _modal_state(lines, start, executed)
     pos_mm, known = _positions(prog, lines, modal, executed, poisoned, warnings)
+    _check_comp_corners(prog, lines, modal, pos_mm, known, executed)
     return _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings)
 
 
@@ -274,6 +275,53 @@ def _check_comp_exit(prog, lines, motion, executed) -> None:
         if nxt.size and motion[nxt[0]] in (20, 30):
             _fail(prog, nxt[0], "the move just after leaving cutter compensation (G40) "
                   "must be straight, not an arc")
+
+
+def _check_comp_corners(prog, lines, modal, pos_mm, known, executed) -> None:
+    """Cutter compensation with a stated diameter (G41.1/G42.1 D..): in a concave
+    corner between two straight XY moves, the offset lines must meet inside both
+    offset moves, or the tool cannot reach the corner without gouging (the
+    LinuxCNC interpreter's check)."""
+    dynamic = np.isin(modal.comp, [411, 421]) & executed
+    if not dynamic.any():
+        return
+    diameter = ffill(np.where(lines.has_g({411, 421}), lines.value("D"), np.nan))
+    feed = dynamic & np.isin(modal.motion, [10]) & (lines.present("X") | lines.present("Y"))
+    # moves under compensation are "unknown" for planning; their programmed path is
+    # trusted here when the position was known where compensation began
+    begins = np.flatnonzero(dynamic & ~np.concatenate(([False], dynamic[:-1])))
+    trusted = np.zeros(lines.n, dtype=bool)
+    for c in begins.tolist():
+        if c > 0 and known[c - 1, :2].all():
+            end = c + int(np.argmin(dynamic[c:])) if not dynamic[c:].all() else lines.n
+            trusted[c:end] = True
+    moves = np.flatnonzero(feed & trusted)
+    for a, b in zip(moves[:-1].tolist(), moves[1:].tolist()):
+        prev = pos_mm[a - 1] if a > 0 else None
+        if prev is None or modal.comp[a] != modal.comp[b]:
+            continue
+        r = 0.5 * diameter[b] * (MM_PER_INCH if modal.inch[b] else 1.0)
+        side = 1.0 if modal.comp[b] == 411 else -1.0  # tool left (G41) or right of the path
+        if _gouges(prev[:2], pos_mm[a, :2], pos_mm[b, :2], r, side):
+            _fail(prog, b, "straight feed in a concave corner cannot be reached by the tool "
+                  "without gouging; lengthen the move or use a smaller tool")
+
+
+def _gouges(p0, p1, p2, r, side) -> bool:
+    d1, d2 = p1 - p0, p2 - p1
+    l1, l2 = math.hypot(*d1), math.hypot(*d2)
+    if l1 < 1e-12 or l2 < 1e-12 or not r > 0:
+        return False
+    d1, d2 = d1 / l1, d2 / l2
+    turn = d1[0] * d2[1] - d1[1] * d2[0]
+    if turn * side <= 1e-12:  # convex corner (or straight on): the tool goes round it
+        return False
+    n1 = side * np.array([-d1[1], d1[0]])  # offset directions toward the tool
+    n2 = side * np.array([-d2[1], d2[0]])
+    # X = p1 + r n1 + t1 d1 = p1 + r n2 + t2 d2
+    m = np.column_stack((d1, -d2))
+    t1, t2 = np.linalg.solve(m, r * (n2 - n1))
+    return t1 < -l1 - 1e-9 or t2 > l2 + 1e-9
 
 
 def _fail(prog: Program, line: int, message: str) -> None:

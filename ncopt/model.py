@@ -260,6 +260,12 @@ class PlanOptions:
     fz_tolerance : allowed relative fz drift inside a block while the spindle ramps
     sample_mm : longest distance between contact samples along a block, mm
     split : split long blocks into collinear pieces so F follows S
+    f_quantum_mm_min : resolution of the F words written (1 for ``F279``), mm/min: F is
+        rounded down to it, which the fz band must absorb
+    fz_policy : ``"centred"`` (default): F from the harmonic mean of the block's lowest and
+        highest real spindle speed, so fz stays within +-fz_tolerance both ways;
+        ``"below"``: F from the lowest speed, so fz never exceeds its target (METHOD.md's
+        choice; it halves the speed change allowed per block)
     """
 
     planner: str = "lookahead"
@@ -267,6 +273,8 @@ class PlanOptions:
     fz_tolerance: float = 0.02
     sample_mm: float = 1.0
     split: bool = False
+    f_quantum_mm_min: float = 0.0
+    fz_policy: str = "centred"
 
 
 @dataclass(frozen=True)

@@ -20,9 +20,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import PlanningError
 from .model import CuttingData, Machine, PlanOptions
 
 MAX_ITERATIONS = 200
+# The profile keeps this share of the spindle's S^2 rate and of the fz band in
+# reserve, so that integer S words (rounded toward the limits) can always follow
+# it, even through a long deceleration at the full rate.
+PLAN_MARGIN = 0.01
 
 
 @dataclass(frozen=True)
@@ -52,6 +57,29 @@ class Profile:
     s_rpm: np.ndarray
     cap_rpm: np.ndarray
     k_rpm2_per_mm: float
+
+
+def max_speed_ratio(opts: PlanOptions, cut: CuttingData, teeth: int, s_low_rpm: float) -> float:
+    """Largest ratio of the highest to the lowest real spindle speed within one block.
+
+    F is constant in a block while the spindle ramps, so fz spans
+    [F/(z S_hi), F/(z S_lo)]; F is also rounded down to ``opts.f_quantum_mm_min``,
+    which at the plan's lowest feed (fz z S_low) takes up to q = quantum / F_low
+    off fz.  Keeping fz within +-tol gives, with r = S_hi/S_lo:
+
+    * ``below`` (F = fz z S_lo):  r <= (1 - q) / (1 - tol)
+    * ``centred`` (F = fz z 2 S_lo S_hi / (S_lo + S_hi)):  r <= (1 + tol - 2q) / (1 - tol)
+    """
+    tol = opts.fz_tolerance
+    q = opts.f_quantum_mm_min / (cut.fz_mm * teeth * max(s_low_rpm, 1.0))
+    if opts.fz_policy not in ("centred", "below"):
+        raise PlanningError(f"unknown fz policy {opts.fz_policy!r}; use centred or below")
+    r = (1.0 + tol - 2.0 * q) / (1.0 - tol) if opts.fz_policy == "centred" else (1.0 - q) / (1.0 - tol)
+    if r <= 1.0:
+        raise PlanningError(f"F words of {opts.f_quantum_mm_min:g} mm/min resolution cannot hold "
+                            f"fz within {100 * tol:g} % at F {cut.fz_mm * teeth * s_low_rpm:.0f} "
+                            "mm/min; write F with more decimals or widen the band")
+    return r
 
 
 def k_rpm2_per_mm(machine: Machine, cut: CuttingData, teeth: int) -> float:
@@ -108,9 +136,11 @@ def lookahead(blocks: Blocks, machine: Machine, cut: CuttingData, teeth: int,
     k = k_rpm2_per_mm(machine, cut, teeth)
     s_lo, s_hi = speed_limits(machine, cut, teeth)
     cap = caps(blocks, s_lo, s_hi, lookahead=True)
-    inc_s2, inc_s = increments(blocks, machine, k)
+    inc_s2, inc_s = increments(blocks, machine, k * (1.0 - PLAN_MARGIN))
+    inc_s = inc_s * (1.0 - PLAN_MARGIN)
+    ratio = max_speed_ratio(opts, cut, teeth, _lowest_cut_cap(cap, blocks))
     ratio_inc = np.where(blocks.cutting & blocks.planned,
-                         np.log(1.0 / (1.0 - opts.fz_tolerance)), np.inf)
+                         np.log(ratio) * (1.0 - PLAN_MARGIN), np.inf)
     s = cap.copy()
     for _ in range(MAX_ITERATIONS):
         before = s
@@ -121,6 +151,11 @@ def lookahead(blocks: Blocks, machine: Machine, cut: CuttingData, teeth: int,
             break
     s = np.maximum(s, np.minimum(s_lo, cap))
     return Profile(s_rpm=s, cap_rpm=cap, k_rpm2_per_mm=k)
+
+
+def _lowest_cut_cap(cap: np.ndarray, blocks: Blocks) -> float:
+    cut = cap[blocks.cutting & blocks.planned]
+    return float(cut.min()) if cut.size else 1.0
 
 
 def forward(blocks: Blocks, machine: Machine, cut: CuttingData, teeth: int,
@@ -205,7 +240,7 @@ def _bfill(a: np.ndarray) -> np.ndarray:
 
 
 def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
-             s_lo: float) -> tuple[np.ndarray, np.ndarray]:
+             s_lo: float, ratio: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Integer S commands per block, and the lowest real spindle speed in each block.
 
     S changes only by at least ``opts.min_rpm_step`` and never rises above the
@@ -219,17 +254,16 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
     Returns
     -------
     s_cmd : (nb,) commanded S, RPM (integers)
-    s_low : (nb,) lowest real spindle speed during each block, RPM
+    s_low, s_high : (nb,) lowest and highest real spindle speed during each block, RPM
     """
     s_plan = profile.s_rpm.tolist()
     inc_s2, inc_s = (a.tolist() for a in incs)
     cutting = (blocks.cutting & blocks.planned).tolist()
     fixed = (~blocks.planned).tolist()
     fixed_rpm = blocks.fixed_rpm.tolist()
-    ratio = 1.0 / (1.0 - opts.fz_tolerance)
     step = opts.min_rpm_step
     lo_int = math.ceil(s_lo)
-    cmd_out, low_out = [0.0] * len(s_plan), [0.0] * len(s_plan)
+    cmd_out, low_out, high_out = [0.0] * len(s_plan), [0.0] * len(s_plan), [0.0] * len(s_plan)
     cur = real = None
     for b, target in enumerate(s_plan):
         if fixed[b]:
@@ -241,8 +275,8 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
             cur = _next_command(cur, real, target, inc_s2[b], inc_s[b], r, step)
         start = cur if real is None else real
         real = _ramp(start, cur, inc_s2[b], inc_s[b])
-        cmd_out[b], low_out[b] = cur, min(start, real)
-    return np.array(cmd_out), np.array(low_out)
+        cmd_out[b], low_out[b], high_out[b] = cur, min(start, real), max(start, real)
+    return np.array(cmd_out), np.array(low_out), np.array(high_out)
 
 
 def _next_command(cur: float, real: float, target: float, inc_s2: float, inc_s: float,
@@ -266,10 +300,15 @@ def _ramp(start: float, command: float, inc_s2: float, inc_s: float) -> float:
     return max(command, math.sqrt(max(start * start - inc_s2, 0.0)), start - inc_s)
 
 
-def feeds(s_low: np.ndarray, blocks: Blocks, cut: CuttingData, teeth: int,
-          max_feed_mm_min: float) -> np.ndarray:
-    """F per cutting block from the lowest real spindle speed in the block, mm/min."""
-    f = np.minimum(cut.fz_mm * teeth * s_low, max_feed_mm_min)
+def feeds(s_low: np.ndarray, s_high: np.ndarray, blocks: Blocks, cut: CuttingData, teeth: int,
+          max_feed_mm_min: float, policy: str = "centred") -> np.ndarray:
+    """F per cutting block (mm/min) from the real spindle speeds in the block.
+
+    ``centred``: the harmonic mean of the lowest and highest speed puts fz's
+    excursions symmetrically inside the band; ``below``: the lowest speed.
+    """
+    s_ref = s_low if policy == "below" else 2.0 * s_low * s_high / np.maximum(s_low + s_high, 1e-9)
+    f = np.minimum(cut.fz_mm * teeth * s_ref, max_feed_mm_min)
     return np.where(blocks.cutting & blocks.planned, f, np.nan)
 
 
@@ -331,10 +370,12 @@ def plan(blocks: Blocks, machine: Machine, cut: CuttingData, teeth: int,
          opts: PlanOptions) -> tuple[np.ndarray, np.ndarray, Profile]:
     """Profile -> integer S commands (RPM) -> F (mm/min) per block."""
     if opts.planner not in ("lookahead", "forward"):
-        raise ValueError(f"unknown planner {opts.planner!r}")
+        raise PlanningError(f"unknown planner {opts.planner!r}")
     planner_fn = lookahead if opts.planner == "lookahead" else forward
     profile = planner_fn(blocks, machine, cut, teeth, opts)
     incs = increments(blocks, machine, profile.k_rpm2_per_mm)
     s_lo, _ = speed_limits(machine, cut, teeth)
-    s_cmd, s_low = emit_rpm(profile, blocks, incs, opts, s_lo)
-    return s_cmd, feeds(s_low, blocks, cut, teeth, machine.max_feed_mm_min), profile
+    ratio = max_speed_ratio(opts, cut, teeth, _lowest_cut_cap(profile.cap_rpm, blocks))
+    s_cmd, s_low, s_high = emit_rpm(profile, blocks, incs, opts, s_lo, ratio)
+    f = feeds(s_low, s_high, blocks, cut, teeth, machine.max_feed_mm_min, opts.fz_policy)
+    return s_cmd, f, profile
