@@ -23,6 +23,7 @@ from .interp import interpret
 from .model import Cutter, CuttingData, Machine, Motion, PlanOptions, Program, Toolpath
 from .parse import parse_text
 from .pathnormals import NO_CROSS, ONE_SIDED
+from .stamp import as_stamped, read_stamps, stamp_edit, without_stamps
 from .rewrite import F_CODE, S_CODE, Targets, apply_edits, detect_style, masked, plan_edits
 from .tooltable import BALL, BULL, cutter_for, tool_table
 from .tools import required_rpm
@@ -48,6 +49,7 @@ class Job:
     teeth: int = 2
     contact_tol_mm: float = 0.05
     verify: bool = True
+    stamp: bool = True
 
 
 @dataclass(frozen=True)
@@ -136,17 +138,19 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
         f_style = replace(f_style, decimals=2, trailing_point=False)  # inch/min needs them
     quantum = 10.0 ** -f_style.decimals * (MM_PER_INCH if inch else 1.0)
     job = replace(job, options=replace(job.options, f_quantum_mm_min=quantum))
-    plans, skipped = _plan_tools(prog, tp, idx, job, mesh_index)
+    stamps = read_stamps(prog)
+    plans, skipped = _plan_tools(prog, tp, idx, job, mesh_index, stamps)
     targets = _targets(tp, idx, plans, f_style)
     edits = plan_edits(prog, targets, s_style, f_style)
-    out = apply_edits(text, edits)
+    stamp = stamp_edit(prog, plans) if job.stamp else None
+    out = apply_edits(text, edits + ([stamp] if stamp else []))
     if job.verify:
         verify(prog, tp, out, targets, s_style, f_style)
     summary = _summary(prog, tp, idx, plans, skipped, edits, mesh_index)
     return Result(out, summary, prog, tp, idx, tuple(plans), targets)
 
 
-def _plan_tools(prog, tp, idx, job, mesh_index):
+def _plan_tools(prog, tp, idx, job, mesh_index, stamps):
     """Plan every ball or bull-nose tool section with its own cutter."""
     feed = np.isin(tp.motion, [Motion.LINEAR, Motion.ARC_CW, Motion.ARC_CCW])
     plannable = feed & tp.known & tp.spindle_on
@@ -162,12 +166,18 @@ def _plan_tools(prog, tp, idx, job, mesh_index):
     table = tool_table(prog) if job.cutter is None else {}
     plans, skipped = [], []
     for tool in tools:
+        stamp = stamps.get(tool)
         cutter, source, why = _cutter(job, table, tool, len(tools), tp.line_inch)
+        if cutter is None and stamp is not None:
+            cutter, source = stamp.cutter, f"the ncopt stamp on line {stamp.line + 1}"
         if cutter is None:
             skipped.append((tool, why))
             continue
         selected = plannable & (tp.tool == tool)
-        plans.append(_plan_tool(tp, idx, job, mesh_index, tool, cutter, source, selected,
+        tool_job = job
+        if job.cutting is None and stamp is not None:  # an optimised program: its nominal data
+            tool_job = replace(job, cutting=stamp.cutting)
+        plans.append(_plan_tool(tp, idx, tool_job, mesh_index, tool, cutter, source, selected,
                                 prog.path))
     if not plans:
         why = "; ".join(f"{_tool_name(t)}: {w}" for t, w in skipped) or "no feed moves with a " \
@@ -198,7 +208,7 @@ def _cutter(job, table, tool, n_tools, line_inch):
 
 
 def _plan_tool(tp, idx, job, mesh_index, tool, cutter, source, selected, path) -> ToolPlan:
-    cut = job.cutting or nominal_cutting_data(tp, selected, cutter, path)
+    cut = job.cutting or as_stamped(nominal_cutting_data(tp, selected, cutter, path))
     sampled = contacts_for(tp, cutter, selected, mesh_index, job.options.sample_mm,
                            job.contact_tol_mm)
     c = sampled.contacts
@@ -257,17 +267,25 @@ def _targets(tp, idx, plans, f_style) -> Targets:
 def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_style) -> None:
     """The checks run after every rewrite; raises VerificationError, writes nothing."""
     out_prog = parse_text(out, prog.path)
-    if masked(out_prog) != masked(prog):
+    if _masked_without_stamps(out_prog) != _masked_without_stamps(prog):
         raise VerificationError("the rewrite changed more than S and F words; nothing written",
                                 prog.path)
     out_tp = interpret(out_prog)
     if out_tp.n != tp.n or not np.array_equal(out_tp.xyz_mm, tp.xyz_mm):
         raise VerificationError("the rewrite changed the toolpath; nothing written", prog.path)
-    again = plan_edits(out_prog, targets, s_style, f_style)
+    # the stamp lines aside, the output must need no further edit for the same targets
+    stamp_lines = np.array(sorted(st.line for st in read_stamps(prog).values()), dtype=np.int64)
+    shifted = replace(targets, line=targets.line - np.searchsorted(stamp_lines, targets.line))
+    clean = parse_text(without_stamps(out_prog), prog.path)
+    again = plan_edits(clean, shifted, s_style, f_style)
     if again:
-        line = int(np.searchsorted(out_prog.line_start, again[0].start, side="right"))
+        line = int(np.searchsorted(clean.line_start, again[0].start, side="right"))
         raise VerificationError("rewriting the result again would change it; nothing written",
                                 prog.path, line)
+
+
+def _masked_without_stamps(prog: Program) -> str:
+    return masked(parse_text(without_stamps(prog), prog.path)) if read_stamps(prog) else masked(prog)
 
 
 def _summary(prog, tp, idx, plans, skipped, edits, mesh_index) -> Summary:

@@ -6,6 +6,7 @@ import json
 import os
 import sys
 import tempfile
+from dataclasses import replace
 from enum import IntEnum
 from pathlib import Path
 from typing import Annotated, Optional
@@ -235,6 +236,81 @@ def batch(
     failed = sum(r.status == "failed" for r in reports)
     raise typer.Exit(int(Exit.OK if failed == 0 else
                          Exit.NOTHING_DONE if failed == len(reports) else Exit.SOME_FAILED))
+
+
+@app.command()
+def simulate(
+    program: Annotated[str, typer.Argument(help="NC program to replay (any program).")],
+    against: Annotated[Optional[str], typer.Option(
+        "--against", help="Also replay this program (e.g. the original) and compare.")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="One JSON summary on stdout.")] = False,
+    csv: Annotated[Optional[Path], typer.Option("--csv", help="Write the per-sample series.")] = None,
+    plot: Annotated[Optional[Path], typer.Option(
+        "--plot", help="Plot S, F, fz and effective diameter along the cut (PNG or SVG).")] = None,
+    plot_path: Annotated[Optional[Path], typer.Option(
+        "--plot-toolpath", help="Plot the toolpath coloured by --color-by (PNG or SVG).")] = None,
+    color_by: Annotated[str, typer.Option("--color-by", help="s_rpm, f_mm_min, d_eff_mm or "
+                                          "vc_m_min.")] = "s_rpm",
+    sample: Annotated[float, typer.Option("--sample", help="Sample spacing along the path, mm.")] = 0.1,
+    mesh: Mesh = None, diameter: Diameter = None, corner_radius: CornerRadius = None,
+    teeth: Teeth = 2, vc: Vc = None, fz: Fz = None, accel: Accel = None,
+    max_rpm: MaxRpm = None, min_rpm: MinRpm = 0.0, max_feed: MaxFeed = float("inf"),
+    tool_point: ToolPoint = "tip", tool: Tool = None, rapid: Rapid = 10000.0,
+) -> None:
+    """Replay a program on a spindle that ramps at its real acceleration: time, fz, vc."""
+    from .geometry import MeshIndex, load_stl
+    from .simulate import simulate_program
+
+    try:
+        job = make_job(diameter, corner_radius, teeth, vc, fz, accel, max_rpm, min_rpm,
+                       max_feed, "lookahead", tool_point, 10.0, tool, rapid)
+        index = MeshIndex(load_stl(mesh)) if mesh else None
+        runs = []
+        for name in ([against] if against else []) + [program]:
+            text = _read(name).decode("latin-1")
+            report, series = simulate_program(text, job, index, path=name, sample_mm=sample)
+            if not runs and job.cutting is None:  # one target for all: the first program's
+                job = replace(job, cutting=CuttingData(report.vc_target_m_min,
+                                                       report.fz_target_mm))
+            runs.append((name, series, report))
+        _simulation_outputs(runs, as_json, csv, plot, plot_path, color_by)
+    except NcoptError as exc:
+        _fail(exc)
+
+
+def _simulation_outputs(runs, as_json, csv, plot, plot_path, color_by) -> None:
+    name, series, report = runs[-1]
+    if csv is not None:
+        series.write_csv(csv)
+    if plot is not None or plot_path is not None:
+        from .plots import plot_along_path, plot_toolpath
+        if plot is not None:
+            plot_along_path(runs, plot)
+        if plot_path is not None:
+            plot_toolpath(series, plot_path, color_by)
+    if as_json:
+        out = {r[0]: r[2].to_dict() for r in runs} if len(runs) > 1 else report.to_dict()
+        print(json.dumps(out, indent=2))
+        return
+    for name, _, rep in runs:
+        print_simulation(rep, err)
+
+
+def print_simulation(r, console: Console) -> None:
+    """The simulation summary a technologist reads before sending a program."""
+    say = lambda text: console.print(text, markup=False)  # noqa: E731
+    say(f"{r.path}: cutting {r.cutting_time_min:.2f} min, rapids {r.rapid_time_min:.2f} min, "
+        f"total {r.total_time_min:.2f} min; highest S {r.max_rpm:.0f} RPM (line {r.max_rpm_line})")
+    say(f"  fz within +-{r.band_pct:g} % of {r.fz_target_mm:.4f} mm on {r.fz_in_band_pct:.2f} % "
+        f"of the cut; most above {r.fz_max_over_pct:+.2f} % (line {r.fz_max_over_line}), "
+        f"most below {-r.fz_min_under_pct:+.2f} % (line {r.fz_min_under_line})")
+    say(f"  vc at most {r.vc_max_over_pct:+.2f} % of its target {r.vc_target_m_min:.1f} m/min "
+        f"(line {r.vc_max_over_line}); mean {r.vc_mean_m_min:.1f} m/min; {r.s_words} S words")
+    if r.lag:
+        say(f"  the spindle cannot follow the S words in {len(r.lag)} places (first at line "
+            f"{r.lag[0].first_line}): fz leaves its band while it catches up")
+    for w in r.warnings[:5]:
+        say(f"  warning: {w}")
 
 
 @app.command()

@@ -28,22 +28,46 @@ class Sampled:
     estimate: PathNormals | None = None  # mesh-free only
 
 
-def sample_points(tp: Toolpath, sample_mm: float) -> tuple[np.ndarray, np.ndarray]:
-    """Points along every move, at most ``sample_mm`` apart, ending on each CL point.
+def sample_fractions(tp: Toolpath, sample_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per sample: the toolpath point whose move it lies on, and how far along (0..1].
 
-    Returns xyz (m, 3) in mm and, per sample, the index of the toolpath point
-    whose move it lies on (point 0 for the start point).
+    Samples are at most ``sample_mm`` apart and end on each CL point; the first
+    sample is point 0 itself (fraction 1).
     """
     seg = np.linalg.norm(np.diff(tp.xyz_mm, axis=0), axis=1)
     n_per = np.maximum(np.ceil(seg / sample_mm).astype(np.int64), 1)
     point = np.concatenate(([0], np.repeat(np.arange(1, tp.n), n_per)))
     offsets = np.concatenate(([0], np.cumsum(n_per)))
     k = np.arange(1, offsets[-1] + 1) - np.repeat(offsets[:-1], n_per)
-    frac = k / np.repeat(n_per, n_per)
-    a = tp.xyz_mm[point[1:] - 1]
-    b = tp.xyz_mm[point[1:]]
-    xyz = np.vstack((tp.xyz_mm[:1], a + (b - a) * frac[:, None]))
-    return xyz, point
+    frac = np.concatenate(([1.0], k / np.repeat(n_per, n_per)))
+    return point, frac
+
+
+def sample_points(tp: Toolpath, sample_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """Points along every move, at most ``sample_mm`` apart, ending on each CL point.
+
+    Returns xyz (m, 3) in mm and, per sample, the index of the toolpath point
+    whose move it lies on (point 0 for the start point).
+    """
+    point, frac = sample_fractions(tp, sample_mm)
+    a = tp.xyz_mm[np.maximum(point - 1, 0)]
+    b = tp.xyz_mm[point]
+    return a + (b - a) * frac[:, None], point
+
+
+def path_contacts_at_samples(tp: Toolpath, cutter: Cutter, selected: np.ndarray,
+                             sample_mm: float) -> Contacts:
+    """Mesh-free contacts on the samples of :func:`sample_points`: the per-point
+    estimate, R_eff interpolated along each move (as the planner assumes)."""
+    at_points = contacts_for(tp, cutter, selected, None, sample_mm, 0.0).contacts
+    point, frac = sample_fractions(tp, sample_mm)
+    prev = np.maximum(point - 1, 0)
+    r = at_points.r_eff_mm[prev] * (1.0 - frac) + at_points.r_eff_mm[point] * frac
+    normal = at_points.normal[prev] * (1.0 - frac)[:, None] + at_points.normal[point] * frac[:, None]
+    normal /= np.maximum(np.linalg.norm(normal, axis=1), 1e-12)[:, None]
+    xyz, _ = sample_points(tp, sample_mm)
+    cc = xyz + np.array([0.0, 0.0, center_offset_mm(cutter)]) - cutter.corner_radius_mm * normal
+    return Contacts(cc_mm=cc, normal=normal, r_eff_mm=r, cutting=at_points.cutting[point])
 
 
 def air_moves(tp: Toolpath) -> np.ndarray:

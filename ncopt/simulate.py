@@ -46,7 +46,8 @@ from pathlib import Path
 import numpy as np
 
 from .api import Job, nominal_cutting_data
-from .contacts import sample_points
+from .stamp import read_stamps
+from .contacts import sample_points, path_contacts_at_samples
 from .errors import UsageError
 from .geometry import MeshIndex, contacts_from_mesh, load_stl
 from .interp import MM_PER_INCH, ffill, interpret
@@ -252,16 +253,19 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
     """
     if not sample_mm > 0:
         raise UsageError(f"sample spacing must be positive, got {sample_mm}", path)
-    if mesh_index is None and contacts is None:
-        raise UsageError("simulating needs the part mesh to find the contact points; "
-                         "give --mesh PART.stl", path)
     prog = parse_text(prog_text, path)
     tp = interpret(prog)
     cutter, tool_mask = _evaluated_tool(prog, tp, job, path)
     job = replace(job, cutter=cutter)
     moves = _move_table(prog, tp, job, tool_mask)
     planned = np.concatenate(([False], moves.candidate & (moves.target_rpm > 0)))
-    cut = job.cutting or nominal_cutting_data(tp, planned, job.cutter, path)
+    stamp = read_stamps(prog).get(int(np.max(tp.tool[1:][tool_mask], initial=-1)))
+    if job.cutting is None and stamp is not None:  # rewritten by ncopt: its nominal data
+        cut = stamp.cutting
+    else:
+        cut = job.cutting or nominal_cutting_data(tp, planned, job.cutter, path)
+    if mesh_index is None and contacts is None:  # contacts from the toolpath's own shape
+        contacts = path_contacts_at_samples(tp, job.cutter, planned, sample_mm)
     runs = _spindle_runs(moves, job.machine.accel_rpm_s)
     series, weight, mv = _sample(tp, moves, runs, job, sample_mm, mesh_index, contacts, path)
     s_words = int(np.count_nonzero(prog.word_letter == ord("S")))

@@ -205,9 +205,15 @@ def test_spindle_start_waits_for_speed(flat):
 # ---------------------------------------------------------------- API and errors
 
 
-def test_needs_a_mesh():
-    with pytest.raises(UsageError, match="needs the part mesh.*--mesh"):
-        simulate_program(program("S1000 M3", "G0 X0 Y0 Z0", "G1 X5 F100"), JOB)
+def test_without_a_mesh_the_toolpath_gives_the_contacts(bowl):
+    """Mesh-free: normals from the passes themselves; the judgement of the bowl
+    rewrite matches the one made with the exact mesh."""
+    original, (rep0, _), (rep_mesh, _), _ = bowl
+    job = Job(cutter=BALL16, machine=Machine(accel_rad_s2=227, max_rpm=15000),
+              cutting=CuttingData(rep0.vc_target_m_min, rep0.fz_target_mm))
+    rep_free, _ = simulate_program(original, job, sample_mm=0.5)
+    assert rep_free.cutting_time_min == pytest.approx(rep0.cutting_time_min, rel=1e-3)
+    assert rep_free.vc_max_over_pct == pytest.approx(rep0.vc_max_over_pct, abs=1.0)
 
 
 def test_bad_contacts_and_spacing(flat):
