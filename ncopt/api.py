@@ -17,6 +17,8 @@ import numpy as np
 
 from . import planner
 from .contacts import Sampled, contacts_for
+from .controls import control_note
+from .dialect import detect
 from .errors import NothingToPlan, PlanningError, UsageError, VerificationError
 from .geometry import MeshIndex, load_stl, mesh_resolution_mm
 from .interp import interpret
@@ -46,6 +48,7 @@ class Job:
     cutting: CuttingData | None = None
     options: PlanOptions = PlanOptions()
     tool: int | None = None
+    control: str | None = None  # None: detected from the program's dialect
     teeth: int = 2
     contact_tol_mm: float = 0.05
     verify: bool = True
@@ -64,6 +67,7 @@ class ToolPlan:
     s_cmd_rpm: np.ndarray
     f_mm_min: np.ndarray
     sampled: Sampled
+    close_s_words: int = 0
 
 
 @dataclass(frozen=True)
@@ -90,6 +94,9 @@ class Summary:
     stepover_mm: float | None = None
     one_sided_points: int = 0
     no_cross_points: int = 0
+    close_s_words: int = 0
+    control: str = ""
+    control_notes: tuple = ()
 
     @property
     def time_change_pct(self) -> float:
@@ -147,6 +154,9 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     if job.verify:
         verify(prog, tp, out, targets, s_style, f_style)
     summary = _summary(prog, tp, idx, plans, skipped, edits, mesh_index)
+    control = job.control or detect(text).name
+    summary = replace(summary, control=control,
+                      control_notes=(control_note(control, summary.s_words),))
     return Result(out, summary, prog, tp, idx, tuple(plans), targets)
 
 
@@ -218,8 +228,9 @@ def _plan_tool(tp, idx, job, mesh_index, tool, cutter, source, selected, path) -
         idx, tp.seg_len_mm, tp.motion, tp.feed_mm_min, tp.known,
         tp.spindle_on & in_section, tp.spindle_rpm, req, c.cutting, sampled.point, selected,
         job.machine.rapid_mm_min)
-    s_cmd, f_mm, _ = planner.plan(blocks, job.machine, cut, cutter.teeth, job.options)
-    return ToolPlan(tool, cutter, cut, source, blocks, s_cmd, f_mm, sampled)
+    emitted, f_mm, _ = planner.plan(blocks, job.machine, cut, cutter.teeth, job.options)
+    return ToolPlan(tool, cutter, cut, source, blocks, emitted.s_cmd_rpm, f_mm, sampled,
+                    emitted.close_s_words)
 
 
 def nominal_cutting_data(tp: Toolpath, selected: np.ndarray, cutter: Cutter,
@@ -310,7 +321,7 @@ def _summary(prog, tp, idx, plans, skipped, edits, mesh_index) -> Summary:
         tools=tuple((p.tool, _describe(p.cutter), p.source) for p in plans),
         skipped_tools=tuple(skipped),
         mesh_edge_mm=float(mesh_resolution_mm(mesh_index.mesh).median_mm) if mesh_index else None,
-        warnings=tp.warnings)
+        warnings=tp.warnings, close_s_words=sum(p.close_s_words for p in plans))
     est = first.sampled.estimate
     if est is not None:
         summary = replace(summary, normals_from="toolpath", stepover_mm=est.stepover_mm,

@@ -18,6 +18,7 @@ from . import __version__
 from .api import Job, Summary, rewrite_file
 from .errors import (MeshError, NcoptError, NcParseError, PlanningError, UsageError,
                      VerificationError)
+from .controls import CONTROLS
 from .model import Cutter, CuttingData, Machine, PlanOptions
 
 
@@ -64,6 +65,16 @@ MinStep = Annotated[float, typer.Option(
     "--min-rpm-step", help="Emit S only when it changes by at least this, RPM.")]
 Tool = Annotated[Optional[int], typer.Option("--tool", help="Plan only this T number.")]
 Rapid = Annotated[float, typer.Option("--rapid", help="Rapid traverse rate, mm/min.")]
+FzPolicy = Annotated[str, typer.Option(
+    "--fz-policy", help="centred: F keeps fz within the band both ways (default); below: fz "
+    "never above its target (slower).")]
+FzBand = Annotated[float, typer.Option("--fz-band", help="Allowed fz deviation while the "
+                                       "spindle ramps, percent.")]
+Control = Annotated[Optional[str], typer.Option(
+    "--control", help="sinumerik, fanuc, linuxcnc, grbl, heidenhain-iso or generic "
+    "(default: detected from the program).")]
+SInterval = Annotated[float, typer.Option(
+    "--min-s-interval-ms", help="Least time between S words, ms (Sinumerik PLC).")]
 
 
 def _exit_code(exc: NcoptError) -> Exit:
@@ -86,7 +97,8 @@ class _IoError(UsageError):
 
 def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel=None,
              max_rpm=None, min_rpm=0.0, max_feed=float("inf"), planner="lookahead",
-             tool_point="tip", min_rpm_step=10.0, tool=None, rapid=10000.0) -> Job:
+             tool_point="tip", min_rpm_step=10.0, tool=None, rapid=10000.0,
+             fz_policy="centred", fz_band=2.0, control=None, min_s_interval_ms=0.0) -> Job:
     """A Job from command-line values, checked; raises UsageError."""
     if accel is None or max_rpm is None:
         raise UsageError("give the spindle: --accel RAD_S2 and --max-rpm RPM")
@@ -105,11 +117,21 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
         raise UsageError("--vc and --fz must be positive")
     if min_rpm > max_rpm:
         raise UsageError("--min-rpm is above --max-rpm")
+    if fz_policy not in ("centred", "below"):
+        raise UsageError(f"--fz-policy must be centred or below, not {fz_policy!r}")
+    if not 0 < fz_band < 50:
+        raise UsageError("--fz-band is a percentage above 0 and below 50")
+    if control is not None and control not in CONTROLS:
+        raise UsageError(f"--control must be one of {', '.join(CONTROLS)}, not {control!r}")
+    if min_s_interval_ms < 0:
+        raise UsageError("--min-s-interval-ms cannot be negative")
     cutter = Cutter(diameter, teeth, corner_radius, tool_point) if diameter is not None else None
     return Job(cutter=cutter, machine=Machine(accel, max_rpm, min_rpm, max_feed, rapid),
                cutting=CuttingData(vc, fz) if vc is not None else None,
-               options=PlanOptions(planner=planner, min_rpm_step=min_rpm_step), tool=tool,
-               teeth=teeth)
+               options=PlanOptions(planner=planner, min_rpm_step=min_rpm_step,
+                                   fz_tolerance=fz_band / 100.0, fz_policy=fz_policy,
+                                   min_s_interval_ms=min_s_interval_ms),
+               tool=tool, teeth=teeth, control=control)
 
 
 def _read(path: str) -> bytes:
@@ -148,13 +170,15 @@ def rewrite(
     teeth: Teeth = 2, vc: Vc = None, fz: Fz = None, accel: Accel = None,
     max_rpm: MaxRpm = None, min_rpm: MinRpm = 0.0, max_feed: MaxFeed = float("inf"),
     planner: Planner = "lookahead", tool_point: ToolPoint = "tip", min_rpm_step: MinStep = 10.0,
-    tool: Tool = None, rapid: Rapid = 10000.0,
+    tool: Tool = None, rapid: Rapid = 10000.0, fz_policy: FzPolicy = "centred",
+    fz_band: FzBand = 2.0, control: Control = None, min_s_interval_ms: SInterval = 0.0,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary on stderr.")] = False,
 ) -> None:
     """Rewrite a program's S and F words; every other byte stays as it is."""
     try:
         job = make_job(diameter, corner_radius, teeth, vc, fz, accel, max_rpm, min_rpm,
-                       max_feed, planner, tool_point, min_rpm_step, tool, rapid)
+                       max_feed, planner, tool_point, min_rpm_step, tool, rapid, fz_policy,
+                       fz_band, control, min_s_interval_ms)
         data = sys.stdin.buffer.read() if input == "-" else _read(input)
         result = rewrite_file(input, job, mesh_path=mesh, data=data)
         _write(output, result.text.encode("latin-1"), input)
@@ -185,6 +209,11 @@ def print_summary(s: Summary, console: Console) -> None:
         if s.no_cross_points:
             say(f"ncopt: {s.no_cross_points} cutting points have no neighbouring pass: their "
                 "cross-slope is unknown and taken as zero")
+    for note in s.control_notes:
+        say(f"ncopt: {s.control} control: {note}")
+    if s.close_s_words:
+        say(f"ncopt: {s.close_s_words} S words had to come sooner than --min-s-interval-ms "
+            "after the previous one (a fall in speed that vc needs)")
     for w in s.warnings[:10]:
         say(f"warning: {w}")
     if len(s.warnings) > 10:
@@ -204,7 +233,8 @@ def batch(
     teeth: Teeth = 2, vc: Vc = None, fz: Fz = None, accel: Accel = None,
     max_rpm: MaxRpm = None, min_rpm: MinRpm = 0.0, max_feed: MaxFeed = float("inf"),
     planner: Planner = "lookahead", tool_point: ToolPoint = "tip", min_rpm_step: MinStep = 10.0,
-    tool: Tool = None, rapid: Rapid = 10000.0,
+    tool: Tool = None, rapid: Rapid = 10000.0, fz_policy: FzPolicy = "centred",
+    fz_band: FzBand = 2.0, control: Control = None, min_s_interval_ms: SInterval = 0.0,
 ) -> None:
     """Rewrite every program of a folder in parallel; one bad file never stops the others."""
     from .batch import find_programs, run_batch, target_for
@@ -212,7 +242,8 @@ def batch(
 
     try:
         job = make_job(diameter, corner_radius, teeth, vc, fz, accel, max_rpm, min_rpm,
-                       max_feed, planner, tool_point, min_rpm_step, tool, rapid)
+                       max_feed, planner, tool_point, min_rpm_step, tool, rapid, fz_policy,
+                       fz_band, control, min_s_interval_ms)
         base, files = find_programs(inputs)
         if in_place and output is not None:
             raise UsageError("give either -o OUTDIR or --in-place, not both")

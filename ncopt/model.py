@@ -266,6 +266,8 @@ class PlanOptions:
         highest real spindle speed, so fz stays within +-fz_tolerance both ways;
         ``"below"``: F from the lowest speed, so fz never exceeds its target (METHOD.md's
         choice; it halves the speed change allowed per block)
+    min_s_interval_ms : least time between two S words (Sinumerik acknowledges each S
+        through the PLC): a rise waits; a fall, which vc needs, never waits and is counted
     """
 
     planner: str = "lookahead"
@@ -275,6 +277,7 @@ class PlanOptions:
     split: bool = False
     f_quantum_mm_min: float = 0.0
     fz_policy: str = "centred"
+    min_s_interval_ms: float = 0.0
 
 
 @dataclass(frozen=True)

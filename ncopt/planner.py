@@ -239,8 +239,27 @@ def _bfill(a: np.ndarray) -> np.ndarray:
     return _ffill(a[::-1], np.nan)[::-1]
 
 
+@dataclass(frozen=True)
+class Emitted:
+    """Integer S commands and the real spindle speeds they give, per block.
+
+    s_cmd_rpm : commanded S;  s_low_rpm, s_high_rpm : lowest and highest real speed
+    in the block;  close_s_words : falls that came sooner than ``min_s_interval_ms``
+    after the previous S word (vc needs them; the control may pause there)
+    """
+
+    s_cmd_rpm: np.ndarray
+    s_low_rpm: np.ndarray
+    s_high_rpm: np.ndarray
+    close_s_words: int = 0
+
+    def __iter__(self):
+        """Unpacks as ``s_cmd, s_low, s_high``."""
+        return iter((self.s_cmd_rpm, self.s_low_rpm, self.s_high_rpm))
+
+
 def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
-             s_lo: float, ratio: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+             s_lo: float, ratio: float, feed_per_rev_mm: float = 0.0) -> Emitted:
     """Integer S commands per block, and the lowest real spindle speed in each block.
 
     S changes only by at least ``opts.min_rpm_step`` and never rises above the
@@ -251,10 +270,9 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
     within one block the speed changes by at most the fz-band ratio.
     This is a sequential hysteresis, one step per block.
 
-    Returns
-    -------
-    s_cmd : (nb,) commanded S, RPM (integers)
-    s_low, s_high : (nb,) lowest and highest real spindle speed during each block, RPM
+    With ``opts.min_s_interval_ms`` a rise waits until that long after the
+    previous S word (block times estimated at F = fz z S, ``feed_per_rev_mm``
+    = fz z); a fall never waits.
     """
     s_plan = profile.s_rpm.tolist()
     inc_s2, inc_s = (a.tolist() for a in incs)
@@ -264,8 +282,12 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
     step = opts.min_rpm_step
     lo_int = math.ceil(s_lo)
     cmd_out, low_out, high_out = [0.0] * len(s_plan), [0.0] * len(s_plan), [0.0] * len(s_plan)
+    interval_s = opts.min_s_interval_ms / 1000.0
+    length, time_free = blocks.length_mm.tolist(), blocks.time_s.tolist()
     cur = real = None
+    since_s, close = math.inf, 0
     for b, target in enumerate(s_plan):
+        before = cur
         if fixed[b]:
             cur = fixed_rpm[b]
         elif cur is None:  # the spindle-start block brings the spindle to speed
@@ -273,10 +295,18 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
         else:
             r = ratio if cutting[b] else math.inf
             cur = _next_command(cur, real, target, inc_s2[b], inc_s[b], r, step)
+            if cur > before and since_s < interval_s:
+                cur = before  # the control is still taking the previous S word
+            elif cur < before and since_s < interval_s:
+                close += 1
+        if cur != before:
+            since_s = 0.0
         start = cur if real is None else real
         real = _ramp(start, cur, inc_s2[b], inc_s[b])
         cmd_out[b], low_out[b], high_out[b] = cur, min(start, real), max(start, real)
-    return np.array(cmd_out), np.array(low_out), np.array(high_out)
+        since_s += (60.0 * length[b] / (feed_per_rev_mm * max(min(start, real), 1.0))
+                    if cutting[b] and feed_per_rev_mm > 0 else time_free[b])
+    return Emitted(np.array(cmd_out), np.array(low_out), np.array(high_out), close)
 
 
 def _next_command(cur: float, real: float, target: float, inc_s2: float, inc_s: float,
@@ -367,7 +397,7 @@ def blocks_from_contacts(idx: BlockIndex, seg_len_mm, motion, feed_mm_min, known
 
 
 def plan(blocks: Blocks, machine: Machine, cut: CuttingData, teeth: int,
-         opts: PlanOptions) -> tuple[np.ndarray, np.ndarray, Profile]:
+         opts: PlanOptions) -> tuple[Emitted, np.ndarray, Profile]:
     """Profile -> integer S commands (RPM) -> F (mm/min) per block."""
     if opts.planner not in ("lookahead", "forward"):
         raise PlanningError(f"unknown planner {opts.planner!r}")
@@ -376,6 +406,7 @@ def plan(blocks: Blocks, machine: Machine, cut: CuttingData, teeth: int,
     incs = increments(blocks, machine, profile.k_rpm2_per_mm)
     s_lo, _ = speed_limits(machine, cut, teeth)
     ratio = max_speed_ratio(opts, cut, teeth, _lowest_cut_cap(profile.cap_rpm, blocks))
-    s_cmd, s_low, s_high = emit_rpm(profile, blocks, incs, opts, s_lo, ratio)
-    f = feeds(s_low, s_high, blocks, cut, teeth, machine.max_feed_mm_min, opts.fz_policy)
-    return s_cmd, f, profile
+    em = emit_rpm(profile, blocks, incs, opts, s_lo, ratio, cut.fz_mm * teeth)
+    f = feeds(em.s_low_rpm, em.s_high_rpm, blocks, cut, teeth, machine.max_feed_mm_min,
+              opts.fz_policy)
+    return em, f, profile
