@@ -49,6 +49,7 @@ class Job:
     options: PlanOptions = PlanOptions()
     tool: int | None = None
     control: str | None = None  # None: detected from the program's dialect
+    tool_library: dict = field(default_factory=dict)  # T number -> Cutter (profiles)
     teeth: int = 2
     contact_tol_mm: float = 0.05
     verify: bool = True
@@ -204,6 +205,8 @@ def _cutter(job, table, tool, n_tools, line_inch):
     """The cutter of T``tool``: from the options, else the program's tool comment."""
     if job.cutter is not None:
         return job.cutter, "options", ""
+    if tool in job.tool_library:
+        return job.tool_library[tool], "the tool profiles", ""
     info = cutter_for(table, tool, n_tools)
     if info is None:
         return None, "", "no diameter known from the program's comments: give --diameter " \

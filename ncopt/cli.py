@@ -55,16 +55,26 @@ Vc = Annotated[Optional[float], typer.Option(
     "--vc", help="Cutting speed target, m/min (default: the program's S at the nominal D).")]
 Fz = Annotated[Optional[float], typer.Option(
     "--fz", help="Feed per tooth target, mm (default: the program's F / (z S)).")]
-Accel = Annotated[float, typer.Option("--accel", help="Spindle acceleration, rad/s^2.")]
-MaxRpm = Annotated[float, typer.Option("--max-rpm", help="Highest spindle speed, RPM.")]
-MinRpm = Annotated[float, typer.Option("--min-rpm", help="Lowest spindle speed, RPM.")]
-MaxFeed = Annotated[float, typer.Option("--max-feed", help="Highest feed, mm/min.")]
+Accel = Annotated[Optional[float], typer.Option(
+    "--accel", help="Spindle acceleration, rad/s^2 (default: from --machine).")]
+MaxRpm = Annotated[Optional[float], typer.Option(
+    "--max-rpm", help="Highest spindle speed, RPM (default: from --machine).")]
+MinRpm = Annotated[Optional[float], typer.Option("--min-rpm", help="Lowest spindle speed, RPM.")]
+MaxFeed = Annotated[Optional[float], typer.Option("--max-feed", help="Highest feed, mm/min.")]
+MachineName = Annotated[Optional[str], typer.Option(
+    "--machine", help="A machine profile (see ncopt profiles).")]
+ToolsFile = Annotated[Optional[Path], typer.Option(
+    "--tools", help="A TOML file of machines, tools and cutting data.")]
+CutterName = Annotated[Optional[str], typer.Option(
+    "--cutter", help="A named tool of the profiles instead of --diameter.")]
+Material = Annotated[Optional[str], typer.Option(
+    "--material", help="Cutting data (vc, fz) of the profiles by name.")]
 Planner = Annotated[str, typer.Option("--planner", help="lookahead or forward.")]
 ToolPoint = Annotated[str, typer.Option("--tool-point", help="Programmed point: tip or center.")]
 MinStep = Annotated[float, typer.Option(
     "--min-rpm-step", help="Emit S only when it changes by at least this, RPM.")]
 Tool = Annotated[Optional[int], typer.Option("--tool", help="Plan only this T number.")]
-Rapid = Annotated[float, typer.Option("--rapid", help="Rapid traverse rate, mm/min.")]
+Rapid = Annotated[Optional[float], typer.Option("--rapid", help="Rapid traverse rate, mm/min.")]
 FzPolicy = Annotated[str, typer.Option(
     "--fz-policy", help="centred: F keeps fz within the band both ways (default); below: fz "
     "never above its target (slower).")]
@@ -96,19 +106,48 @@ class _IoError(UsageError):
 
 
 def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel=None,
-             max_rpm=None, min_rpm=0.0, max_feed=float("inf"), planner="lookahead",
-             tool_point="tip", min_rpm_step=10.0, tool=None, rapid=10000.0,
-             fz_policy="centred", fz_band=2.0, control=None, min_s_interval_ms=0.0) -> Job:
-    """A Job from command-line values, checked; raises UsageError."""
+             max_rpm=None, min_rpm=None, max_feed=None, planner="lookahead",
+             tool_point="tip", min_rpm_step=10.0, tool=None, rapid=None,
+             fz_policy="centred", fz_band=2.0, control=None, min_s_interval_ms=None,
+             machine=None, tools_file=None, cutter_name=None, material=None) -> Job:
+    """A Job from command-line values and the profiles, checked; raises UsageError.
+
+    Command-line values win; then the machine profile (--machine, else the
+    profiles' default_machine); then ncopt's defaults.
+    """
+    from .profiles import load
+
+    profiles = load(tools_file=tools_file)
+    name = machine or (profiles.default_machine[0] if profiles.default_machine else None)
+    m = profiles.machine(name) if name else None
+    pick = lambda given, attr, default: given if given is not None else (  # noqa: E731
+        getattr(m, attr) if m is not None else default)
+    accel, max_rpm = pick(accel, "accel_rad_s2", None), pick(max_rpm, "max_rpm", None)
+    min_rpm, max_feed = pick(min_rpm, "min_rpm", 0.0), pick(max_feed, "max_feed_mm_min", float("inf"))
+    rapid, control = pick(rapid, "rapid_mm_min", 10000.0), pick(control, "control", None)
+    min_s_interval_ms = pick(min_s_interval_ms, "min_s_interval_ms", 0.0)
+    if cutter_name is not None:
+        if diameter is not None:
+            raise UsageError("give --cutter or --diameter, not both")
+        named = profiles.tool(cutter_name)
+        if named is None:
+            raise UsageError(f"no tool {cutter_name!r} in the profiles; see ncopt profiles")
+        diameter, corner_radius, teeth = named.diameter_mm, named.corner_radius_mm, named.teeth
+    if material is not None:
+        if vc is not None or fz is not None:
+            raise UsageError("give --material or --vc/--fz, not both")
+        data = profiles.material(material)
+        vc, fz = data.vc_m_min, data.fz_mm
     if accel is None or max_rpm is None:
-        raise UsageError("give the spindle: --accel RAD_S2 and --max-rpm RPM")
+        raise UsageError("give the spindle: --accel RAD_S2 and --max-rpm RPM, or a --machine "
+                         "profile (ncopt profiles lists them)")
     if planner not in ("lookahead", "forward"):
         raise UsageError(f"--planner must be lookahead or forward, not {planner!r}")
     if tool_point not in ("tip", "center"):
         raise UsageError(f"--tool-point must be tip or center, not {tool_point!r}")
     if (diameter is not None and diameter <= 0) or teeth <= 0 or accel <= 0 or max_rpm <= 0:
         raise UsageError("--diameter, --teeth, --accel and --max-rpm must be positive")
-    if corner_radius is not None and (diameter is None or not 0 < corner_radius <= diameter / 2):
+    if corner_radius is not None and (diameter is None or not 0 < corner_radius <= diameter / 2 + 1e-12):
         raise UsageError("--corner-radius needs --diameter and must be above 0 and at most "
                          "half the diameter")
     if (vc is None) != (fz is None):
@@ -131,7 +170,8 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
                options=PlanOptions(planner=planner, min_rpm_step=min_rpm_step,
                                    fz_tolerance=fz_band / 100.0, fz_policy=fz_policy,
                                    min_s_interval_ms=min_s_interval_ms),
-               tool=tool, teeth=teeth, control=control)
+               tool=tool, teeth=teeth, control=control,
+               tool_library={k: c for k, (c, _) in profiles.tools.items() if isinstance(k, int)})
 
 
 def _read(path: str) -> bytes:
@@ -168,17 +208,20 @@ def rewrite(
         "-o", "--output", help="Where to write; - or omitted: stdout.")] = None,
     mesh: Mesh = None, diameter: Diameter = None, corner_radius: CornerRadius = None,
     teeth: Teeth = 2, vc: Vc = None, fz: Fz = None, accel: Accel = None,
-    max_rpm: MaxRpm = None, min_rpm: MinRpm = 0.0, max_feed: MaxFeed = float("inf"),
+    max_rpm: MaxRpm = None, min_rpm: MinRpm = None, max_feed: MaxFeed = None,
     planner: Planner = "lookahead", tool_point: ToolPoint = "tip", min_rpm_step: MinStep = 10.0,
-    tool: Tool = None, rapid: Rapid = 10000.0, fz_policy: FzPolicy = "centred",
-    fz_band: FzBand = 2.0, control: Control = None, min_s_interval_ms: SInterval = 0.0,
+    tool: Tool = None, rapid: Rapid = None, fz_policy: FzPolicy = "centred",
+    fz_band: FzBand = 2.0, control: Control = None, min_s_interval_ms: SInterval = None,
+    machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
+    material: Material = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary on stderr.")] = False,
 ) -> None:
     """Rewrite a program's S and F words; every other byte stays as it is."""
     try:
         job = make_job(diameter, corner_radius, teeth, vc, fz, accel, max_rpm, min_rpm,
                        max_feed, planner, tool_point, min_rpm_step, tool, rapid, fz_policy,
-                       fz_band, control, min_s_interval_ms)
+                       fz_band, control, min_s_interval_ms, machine, tools_file, cutter,
+                       material)
         data = sys.stdin.buffer.read() if input == "-" else _read(input)
         result = rewrite_file(input, job, mesh_path=mesh, data=data)
         _write(output, result.text.encode("latin-1"), input)
@@ -231,10 +274,12 @@ def batch(
     report: Annotated[Optional[Path], typer.Option("--report", help="Write a JSON report.")] = None,
     mesh: Mesh = None, diameter: Diameter = None, corner_radius: CornerRadius = None,
     teeth: Teeth = 2, vc: Vc = None, fz: Fz = None, accel: Accel = None,
-    max_rpm: MaxRpm = None, min_rpm: MinRpm = 0.0, max_feed: MaxFeed = float("inf"),
+    max_rpm: MaxRpm = None, min_rpm: MinRpm = None, max_feed: MaxFeed = None,
     planner: Planner = "lookahead", tool_point: ToolPoint = "tip", min_rpm_step: MinStep = 10.0,
-    tool: Tool = None, rapid: Rapid = 10000.0, fz_policy: FzPolicy = "centred",
-    fz_band: FzBand = 2.0, control: Control = None, min_s_interval_ms: SInterval = 0.0,
+    tool: Tool = None, rapid: Rapid = None, fz_policy: FzPolicy = "centred",
+    fz_band: FzBand = 2.0, control: Control = None, min_s_interval_ms: SInterval = None,
+    machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
+    material: Material = None,
 ) -> None:
     """Rewrite every program of a folder in parallel; one bad file never stops the others."""
     from .batch import find_programs, run_batch, target_for
@@ -243,7 +288,8 @@ def batch(
     try:
         job = make_job(diameter, corner_radius, teeth, vc, fz, accel, max_rpm, min_rpm,
                        max_feed, planner, tool_point, min_rpm_step, tool, rapid, fz_policy,
-                       fz_band, control, min_s_interval_ms)
+                       fz_band, control, min_s_interval_ms, machine, tools_file, cutter,
+                       material)
         base, files = find_programs(inputs)
         if in_place and output is not None:
             raise UsageError("give either -o OUTDIR or --in-place, not both")
@@ -285,8 +331,10 @@ def simulate(
     sample: Annotated[float, typer.Option("--sample", help="Sample spacing along the path, mm.")] = 0.1,
     mesh: Mesh = None, diameter: Diameter = None, corner_radius: CornerRadius = None,
     teeth: Teeth = 2, vc: Vc = None, fz: Fz = None, accel: Accel = None,
-    max_rpm: MaxRpm = None, min_rpm: MinRpm = 0.0, max_feed: MaxFeed = float("inf"),
-    tool_point: ToolPoint = "tip", tool: Tool = None, rapid: Rapid = 10000.0,
+    max_rpm: MaxRpm = None, min_rpm: MinRpm = None, max_feed: MaxFeed = None,
+    tool_point: ToolPoint = "tip", tool: Tool = None, rapid: Rapid = None,
+    machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
+    material: Material = None,
 ) -> None:
     """Replay a program on a spindle that ramps at its real acceleration: time, fz, vc."""
     from .geometry import MeshIndex, load_stl
@@ -294,7 +342,8 @@ def simulate(
 
     try:
         job = make_job(diameter, corner_radius, teeth, vc, fz, accel, max_rpm, min_rpm,
-                       max_feed, "lookahead", tool_point, 10.0, tool, rapid)
+                       max_feed, "lookahead", tool_point, 10.0, tool, rapid, machine=machine,
+                       tools_file=tools_file, cutter_name=cutter, material=material)
         index = MeshIndex(load_stl(mesh)) if mesh else None
         runs = []
         for name in ([against] if against else []) + [program]:
@@ -382,6 +431,48 @@ def diff(
         write_unified(original, rewritten, a, b, sys.stdout)
     else:
         render_side_by_side(original, rewritten, a, b, out)
+
+
+@app.command()
+def profiles(
+    tools_file: ToolsFile = None,
+) -> None:
+    """List the machine, tool and cutting-data profiles found, and where from."""
+    from rich.table import Table
+
+    from .profiles import load, user_file
+
+    try:
+        found = load(tools_file=tools_file)
+    except NcoptError as exc:
+        _fail(exc)
+    out = Console(highlight=False)
+    out.print(f"profile files, later ones win (user file: {user_file()}; project file: "
+              "./ncopt.toml):", markup=False)
+    for src in found.sources:
+        out.print(f"  {src}", markup=False)
+    t = Table(title="machines")
+    for col in ("name", "accel rad/s^2", "max RPM", "control", "from"):
+        t.add_column(col)
+    for m in found.machines.values():
+        t.add_row(m.name, f"{m.accel_rad_s2:g}", f"{m.max_rpm:g}", m.control or "detected", m.source)
+    out.print(t)
+    t = Table(title="tools")
+    for col in ("T / name", "cutter", "from"):
+        t.add_column(col)
+    for key, (c, src) in found.tools.items():
+        kind = "ball" if c.is_ball else f"bull-nose r{c.corner_radius_mm:g}"
+        t.add_row(str(key), f"D{c.diameter_mm:g} {kind}, {c.teeth} teeth", src)
+    out.print(t)
+    t = Table(title="cutting data")
+    for col in ("material", "vc m/min", "fz mm", "from"):
+        t.add_column(col)
+    for name, (c, src) in found.cutting.items():
+        t.add_row(name, f"{c.vc_m_min:g}", f"{c.fz_mm:g}", src)
+    out.print(t)
+    if found.default_machine:
+        out.print(f"default machine: {found.default_machine[0]} ({found.default_machine[1]})",
+                  markup=False)
 
 
 @app.command()

@@ -1,0 +1,139 @@
+"""Machine, tool and cutting-data profiles in TOML.
+
+Looked up, later sources winning: the examples shipped with ncopt, the user's
+config folder (``platformdirs.user_config_dir("ncopt")/ncopt.toml``), a
+project-local ``ncopt.toml`` in the working folder, then a file given with
+``--tools``.  Command-line options win over every profile.
+
+A file may hold::
+
+    default_machine = "tajmac"
+    [machines.tajmac]      # accel_rad_s2, max_rpm, min_rpm, max_feed_mm_min,
+    accel_rad_s2 = 227     # rapid_mm_min, control, min_s_interval_ms
+    max_rpm = 15000
+    [tools.4]              # by T number or by name: type (ball | bull-nose),
+    type = "ball"          # diameter_mm, corner_radius_mm, teeth
+    diameter_mm = 16
+    teeth = 2
+    [cutting."1.4462"]     # vc_m_min, fz_mm
+    vc_m_min = 70
+    fz_mm = 0.1
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .errors import UsageError
+from .model import Cutter, CuttingData
+
+EXAMPLES = Path(__file__).resolve().parent / "data" / "examples.toml"
+PROJECT_FILE = "ncopt.toml"
+
+
+@dataclass(frozen=True)
+class MachineProfile:
+    name: str
+    source: str
+    accel_rad_s2: float
+    max_rpm: float
+    min_rpm: float = 0.0
+    max_feed_mm_min: float = float("inf")
+    rapid_mm_min: float = 10000.0
+    control: str | None = None
+    min_s_interval_ms: float = 0.0
+
+
+@dataclass(frozen=True)
+class Profiles:
+    """Everything found, with where each entry came from."""
+
+    machines: dict = field(default_factory=dict)
+    tools: dict = field(default_factory=dict)  # key (int T or str name) -> (Cutter, source)
+    cutting: dict = field(default_factory=dict)  # name -> (CuttingData, source)
+    default_machine: tuple | None = None  # (name, source)
+    sources: tuple = ()
+
+    def machine(self, name: str) -> MachineProfile:
+        if name not in self.machines:
+            known = ", ".join(sorted(self.machines)) or "none"
+            raise UsageError(f"no machine profile {name!r} (known: {known}); see ncopt profiles")
+        return self.machines[name]
+
+    def tool(self, key: int | str) -> Cutter | None:
+        entry = self.tools.get(key)
+        return entry[0] if entry else None
+
+    def material(self, name: str) -> CuttingData:
+        if name not in self.cutting:
+            known = ", ".join(sorted(self.cutting)) or "none"
+            raise UsageError(f"no cutting data for {name!r} (known: {known}); see ncopt profiles")
+        return self.cutting[name][0]
+
+
+def user_file() -> Path:
+    from platformdirs import user_config_dir
+    return Path(user_config_dir("ncopt")) / "ncopt.toml"
+
+
+def search_paths(cwd: Path | None = None, tools_file: Path | None = None) -> list[Path]:
+    """Profile files in the order they apply (later ones win)."""
+    paths = [EXAMPLES, user_file(), (cwd or Path.cwd()) / PROJECT_FILE]
+    if tools_file is not None:
+        if not Path(tools_file).is_file():
+            raise UsageError("the tools file does not exist; check --tools", str(tools_file))
+        paths.append(Path(tools_file))
+    return [p for p in paths if p.is_file()]
+
+
+def load(cwd: Path | None = None, tools_file: Path | None = None) -> Profiles:
+    """Read every profile file that applies."""
+    machines, tools, cutting, default = {}, {}, {}, None
+    files = search_paths(cwd, tools_file)
+    for path in files:
+        try:
+            data = tomllib.loads(path.read_text(encoding="utf-8"))
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+            raise UsageError(f"cannot read the profile: {exc}; fix the TOML", str(path)) from None
+        src = str(path)
+        for name, m in data.get("machines", {}).items():
+            machines[name] = _machine(name, m, src)
+        for key, t in data.get("tools", {}).items():
+            tools[int(key) if str(key).isdigit() else key] = (_tool(key, t, src), src)
+        for name, c in data.get("cutting", {}).items():
+            cutting[name] = (_cutting(name, c, src), src)
+        if "default_machine" in data:
+            default = (data["default_machine"], src)
+    return Profiles(machines, tools, cutting, default, tuple(str(p) for p in files))
+
+
+def _need(entry: dict, key: str, what: str, src: str):
+    if key not in entry:
+        raise UsageError(f"{what} has no {key}; add it", src)
+    return entry[key]
+
+
+def _machine(name: str, m: dict, src: str) -> MachineProfile:
+    what = f"machine {name!r}"
+    return MachineProfile(name, src, float(_need(m, "accel_rad_s2", what, src)),
+                          float(_need(m, "max_rpm", what, src)), float(m.get("min_rpm", 0.0)),
+                          float(m.get("max_feed_mm_min", float("inf"))),
+                          float(m.get("rapid_mm_min", 10000.0)), m.get("control"),
+                          float(m.get("min_s_interval_ms", 0.0)))
+
+
+def _tool(key, t: dict, src: str) -> Cutter:
+    what = f"tool {key!r}"
+    d = float(_need(t, "diameter_mm", what, src))
+    kind = t.get("type", "ball")
+    if kind not in ("ball", "bull-nose"):
+        raise UsageError(f"{what}: type must be ball or bull-nose, not {kind!r}", src)
+    r = d / 2 if kind == "ball" else float(_need(t, "corner_radius_mm", what, src))
+    return Cutter(d, int(t.get("teeth", 2)), r)
+
+
+def _cutting(name: str, c: dict, src: str) -> CuttingData:
+    what = f"cutting data {name!r}"
+    return CuttingData(float(_need(c, "vc_m_min", what, src)), float(_need(c, "fz_mm", what, src)))
