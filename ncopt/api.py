@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from . import planner
-from .contacts import Sampled, contacts_for
+from .contacts import Method, Sampled, contacts_for
 from .controls import control_note
 from .dialect import detect
 from .errors import NothingToPlan, PlanningError, UsageError, VerificationError
@@ -51,6 +51,7 @@ class Job:
     control: str | None = None  # None: detected from the program's dialect
     tool_library: dict = field(default_factory=dict)  # T number -> Cutter (profiles)
     teeth: int = 2
+    method: Method = Method()  # contact point (default) or remaining material
     contact_tol_mm: float = 0.05
     verify: bool = True
     stamp: bool = True
@@ -223,7 +224,7 @@ def _cutter(job, table, tool, n_tools, line_inch):
 def _plan_tool(tp, idx, job, mesh_index, tool, cutter, source, selected, path) -> ToolPlan:
     cut = job.cutting or as_stamped(nominal_cutting_data(tp, selected, cutter, path))
     sampled = contacts_for(tp, cutter, selected, mesh_index, job.options.sample_mm,
-                           job.contact_tol_mm)
+                           job.contact_tol_mm, job.method)
     c = sampled.contacts
     req = required_rpm(c.r_eff_mm, cut.vc_m_min)
     in_section = (tp.tool == tool)

@@ -18,6 +18,7 @@ from . import __version__
 from .api import Job, Summary, rewrite_file
 from .errors import (MeshError, NcoptError, NcParseError, PlanningError, UsageError,
                      VerificationError)
+from .contacts import Method
 from .controls import CONTROLS
 from .model import Cutter, CuttingData, Machine, PlanOptions
 
@@ -83,6 +84,13 @@ FzBand = Annotated[float, typer.Option("--fz-band", help="Allowed fz deviation w
 Control = Annotated[Optional[str], typer.Option(
     "--control", help="sinumerik, fanuc, linuxcnc, grbl, heidenhain-iso or generic "
     "(default: detected from the program).")]
+MethodName = Annotated[str, typer.Option(
+    "--method", help="contact: R_eff at the contact point (default); material: where the "
+    "edge meets the remaining material (the paper's second method).")]
+Ap = Annotated[float, typer.Option("--ap", help="Height of the remaining material, mm.")]
+AllowanceAlong = Annotated[str, typer.Option(
+    "--allowance-along", help="normal (default) or axis: the remaining material is offset "
+    "along the surface normal or the tool axis (finishing layers made by shifting Z).")]
 SInterval = Annotated[float, typer.Option(
     "--min-s-interval-ms", help="Least time between S words, ms (Sinumerik PLC).")]
 
@@ -109,7 +117,8 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
              max_rpm=None, min_rpm=None, max_feed=None, planner="lookahead",
              tool_point="tip", min_rpm_step=10.0, tool=None, rapid=None,
              fz_policy="centred", fz_band=2.0, control=None, min_s_interval_ms=None,
-             machine=None, tools_file=None, cutter_name=None, material=None) -> Job:
+             machine=None, tools_file=None, cutter_name=None, material=None,
+             method="contact", ap=0.2, allowance_along="normal") -> Job:
     """A Job from command-line values and the profiles, checked; raises UsageError.
 
     Command-line values win; then the machine profile (--machine, else the
@@ -164,6 +173,12 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
         raise UsageError(f"--control must be one of {', '.join(CONTROLS)}, not {control!r}")
     if min_s_interval_ms < 0:
         raise UsageError("--min-s-interval-ms cannot be negative")
+    if method not in ("contact", "material"):
+        raise UsageError(f"--method must be contact or material, not {method!r}")
+    if allowance_along not in ("normal", "axis"):
+        raise UsageError(f"--allowance-along must be normal or axis, not {allowance_along!r}")
+    if not ap > 0:
+        raise UsageError("--ap must be positive")
     cutter = Cutter(diameter, teeth, corner_radius, tool_point) if diameter is not None else None
     return Job(cutter=cutter, machine=Machine(accel, max_rpm, min_rpm, max_feed, rapid),
                cutting=CuttingData(vc, fz) if vc is not None else None,
@@ -171,6 +186,7 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
                                    fz_tolerance=fz_band / 100.0, fz_policy=fz_policy,
                                    min_s_interval_ms=min_s_interval_ms),
                tool=tool, teeth=teeth, control=control,
+               method=Method(method, ap, allowance_along),
                tool_library={k: c for k, (c, _) in profiles.tools.items() if isinstance(k, int)})
 
 
@@ -213,7 +229,8 @@ def rewrite(
     tool: Tool = None, rapid: Rapid = None, fz_policy: FzPolicy = "centred",
     fz_band: FzBand = 2.0, control: Control = None, min_s_interval_ms: SInterval = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
-    material: Material = None,
+    material: Material = None, method: MethodName = "contact", ap: Ap = 0.2,
+    allowance_along: AllowanceAlong = "normal",
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary on stderr.")] = False,
 ) -> None:
     """Rewrite a program's S and F words; every other byte stays as it is."""
@@ -221,7 +238,7 @@ def rewrite(
         job = make_job(diameter, corner_radius, teeth, vc, fz, accel, max_rpm, min_rpm,
                        max_feed, planner, tool_point, min_rpm_step, tool, rapid, fz_policy,
                        fz_band, control, min_s_interval_ms, machine, tools_file, cutter,
-                       material)
+                       material, method, ap, allowance_along)
         data = sys.stdin.buffer.read() if input == "-" else _read(input)
         result = rewrite_file(input, job, mesh_path=mesh, data=data)
         _write(output, result.text.encode("latin-1"), input)
@@ -279,7 +296,8 @@ def batch(
     tool: Tool = None, rapid: Rapid = None, fz_policy: FzPolicy = "centred",
     fz_band: FzBand = 2.0, control: Control = None, min_s_interval_ms: SInterval = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
-    material: Material = None,
+    material: Material = None, method: MethodName = "contact", ap: Ap = 0.2,
+    allowance_along: AllowanceAlong = "normal",
 ) -> None:
     """Rewrite every program of a folder in parallel; one bad file never stops the others."""
     from .batch import find_programs, run_batch, target_for
@@ -289,7 +307,7 @@ def batch(
         job = make_job(diameter, corner_radius, teeth, vc, fz, accel, max_rpm, min_rpm,
                        max_feed, planner, tool_point, min_rpm_step, tool, rapid, fz_policy,
                        fz_band, control, min_s_interval_ms, machine, tools_file, cutter,
-                       material)
+                       material, method, ap, allowance_along)
         base, files = find_programs(inputs)
         if in_place and output is not None:
             raise UsageError("give either -o OUTDIR or --in-place, not both")

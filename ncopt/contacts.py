@@ -9,13 +9,14 @@ normal is their interpolation, so no interior samples are needed.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .geometry import MeshIndex, contacts_from_mesh
 from .model import Contacts, Cutter, Motion, Toolpath
 from .pathnormals import PathNormals, contacts_from_path
+from .remaining import r_eff_material_mm
 from .tools import center_offset_mm
 
 
@@ -82,14 +83,37 @@ def air_moves(tp: Toolpath) -> np.ndarray:
     return np.concatenate(([False], np.abs(d[:, 2]) > 0.98 * np.maximum(length, 1e-12)))
 
 
+@dataclass(frozen=True)
+class Method:
+    """How R_eff is found: at the contact point (``contact``, the default) or where the
+    edge meets the remaining material of height ``ap_mm`` (``material``), offset along
+    the surface normal or the tool axis (``along``)."""
+
+    name: str = "contact"
+    ap_mm: float = 0.2
+    along: str = "normal"
+
+
 def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index: MeshIndex | None,
-                 sample_mm: float, tol_mm: float) -> Sampled:
+                 sample_mm: float, tol_mm: float, method: Method = Method()) -> Sampled:
     """Contacts of ``cutter`` along the toolpath, from the mesh if there is one."""
     offset = np.array([0.0, 0.0, center_offset_mm(cutter)])
     if mesh_index is not None:
         xyz, point = sample_points(tp, sample_mm)
-        return Sampled(contacts_from_mesh(xyz + offset, mesh_index, cutter, tol_mm=tol_mm), point)
-    path = np.cumsum(tp.seg_len_mm)
-    cutting = selected & ~air_moves(tp)
-    contacts, estimate = contacts_from_path(tp.xyz_mm + offset, path, cutting, cutter)
-    return Sampled(contacts, np.arange(tp.n), estimate)
+        sampled = Sampled(contacts_from_mesh(xyz + offset, mesh_index, cutter, tol_mm=tol_mm),
+                          point)
+    else:
+        path = np.cumsum(tp.seg_len_mm)
+        cutting = selected & ~air_moves(tp)
+        contacts, estimate = contacts_from_path(tp.xyz_mm + offset, path, cutting, cutter)
+        sampled = Sampled(contacts, np.arange(tp.n), estimate)
+    if method.name == "material":
+        sampled = replace(sampled, contacts=_with_material(tp, cutter, sampled, method))
+    return sampled
+
+
+def _with_material(tp: Toolpath, cutter: Cutter, sampled: Sampled, method: Method) -> Contacts:
+    """R_eff from the remaining material, with each sample's direction of motion."""
+    d = tp.xyz_mm[sampled.point] - tp.xyz_mm[np.maximum(sampled.point - 1, 0)]
+    r = r_eff_material_mm(cutter, sampled.contacts.normal, d, method.ap_mm, method.along)
+    return replace(sampled.contacts, r_eff_mm=r)
