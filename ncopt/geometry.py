@@ -1,28 +1,49 @@
 """Contact points and normals from a triangle mesh of the part.
 
-Three-axis tools (axis ``+Z``).  The caller gives cutter centres: the ball
-centre of a ball-end mill, or the centre of the torus core circle of a
-bull-nose (programmed point + ``tools.center_offset_mm``).  A libigl AABB tree
-finds the closest mesh point to each centre; that point is the CC point.
+Three-axis tools (axis +Z).  Callers give cutter centres: ball centres, or the
+centres of a bull-nose's torus core circle (programmed point +
+``tools.center_offset_mm``).  The CC point is the mesh point closest to the
+centre (libigl AABB tree), for a bull-nose to its core disc (radius R - r).
 
-Normals
--------
-A faceted mesh has piecewise-constant facet normals, and the direction from
-the CC point to the centre is the facet normal wherever the closest point lies
-inside a facet: both jump from facet to facet, and so does ``R_eff``.
-``normals="smooth"`` (the default) interpolates area-weighted per-corner
-normals (libigl ``per_corner_normals``: faces meeting at more than
-``feature_angle_deg`` are not averaged, so sharp part edges stay sharp) and
-takes one or two Newton steps on that normal field to the point ``p`` whose
-smoothed normal passes through the centre (``centre = p + t n(p)``).  For a
-sphere with exact vertex normals this is exact at any mesh size.  Where the CC
-point lies on a feature edge (the cutter rolls over a sharp edge) or the
-smoothed normal disagrees with the CC->centre direction by more than the
-feature angle (e.g. inconsistent facet winding) the CC->centre direction is
-used.  ``"phong"`` is the plain interpolation at the CC point, ``"center"`` the
-CC->centre direction, ``"facet"`` the facet normal.
+Normals (``normals=``): ``"facet"``; ``"center"`` (CC->centre: the facet
+normal too wherever the CC point is inside a facet, so both jump from facet to
+facet and R_eff with them); ``"phong"``: corner normals (angle-weighted vertex
+normals, split where facets meet at more than ``feature_angle_deg``)
+interpolated at the CC point; ``"smooth"`` (default): Newton steps on that
+field to the point p whose normal passes through the centre (exact on a sphere
+with exact vertex normals), at most 2x the phong/CC->centre angle away from
+phong; CC->centre on sharp edges and where the two disagree by more than the
+feature angle (e.g. inconsistent winding).
 
-MEASUREMENTS_PLACEHOLDER
+Measured (``bench/bench_geometry.py normals``): analytic surfaces meshed on
+jittered grids, ball centres at distance R along the analytic normal.  Cells:
+95th-percentile normal error, deg / worst vc overshoot R_true/R_est - 1, %
+(where R_eff >= 0.2 R), at grid pitch 0.5 and 2 mm:
+
+    surface, tool               grid | facet       center      phong       smooth
+    convex sphere rho 20, D16   0.5  | 1.24 11.5   0.73  5.3   0.32  2.2   0.10  0.7
+                                2.0  | 4.96 52.6   2.96 26.7   1.36 10.1   0.53  3.4
+    concave bowl rho 50, D16    0.5  | 0.43  3.4   0.43  3.4   0.10  0.7   0.06  0.6
+                                2.0  | 1.74 16.6   1.73 16.6   0.41  3.4   0.27  2.2
+    concave fillet rho 5, D8    0.5  | 4.22 74.1   4.22 74.1   3.43 54.0   2.24 25.5
+                                2.0  | 16.3  145   16.3  145   13.8 77.8   13.9 30.9
+    convex fillet rho 5, D16    0.5  | 4.27 60.1   1.15  9.6   1.65 16.3   0.47  1.5
+                                2.0  | 16.3  150   4.70 35.1   6.97 49.5   4.34  4.8
+    gauss bump 8/12 mm, D8      0.5  | 1.15 15.5   0.89 11.6   0.27  5.0   0.15  1.4
+                                2.0  | 4.61 85.6   3.61 57.9   1.57 22.6   1.33  9.9
+    sharp 50 deg edge, D8       any  | 46.5  0.0   0.00  0.0   46.5  0.0   0.00  0.0
+
+Area-weighted normals doubled the smooth errors; without the sharp-edge rule
+the edge case erred 4-15 deg (p95); a 50/50 blend of CC->centre and phong was
+worse than phong; unclamped Newton erred up to 12-21 deg on the concave fillet
+at 0.5-1 mm (clamped: 4-8).  No method copes with a 5 mm fillet meshed at 2 mm:
+report ``mesh_resolution_mm``.  Bull-nose (``... bullnose``, D8 r1): clearance
+within 0.007 mm of a brute-force minimum over the disc, R_eff within 0.01 mm;
+but with several bumps under a wide flat (D16 r2, egg-crate of 12.6 mm
+period) the lowest can be missed (clearance up to 0.11 mm high; 15 % of the
+near-contact points taken for air).  libigl's query is multi-threaded (1M
+path-ordered points, 1M triangles: 3.3 s wall, 6.3 s CPU on 2 cores; shuffled
+12 s): the fork pool only spreads the numpy work.
 """
 
 from __future__ import annotations
@@ -43,19 +64,9 @@ from ncopt import tools
 from ncopt.errors import MeshError
 from ncopt.model import Contacts, Cutter
 
-__all__ = [
-    "NORMAL_METHODS",
-    "Closest",
-    "EdgeLengths",
-    "Mesh",
-    "MeshContacts",
-    "MeshIndex",
-    "contacts_from_mesh",
-    "load_stl",
-    "mesh_contacts",
-    "mesh_from_triangles",
-    "mesh_resolution_mm",
-]
+__all__ = ["NORMAL_METHODS", "Closest", "EdgeLengths", "Mesh", "MeshContacts", "MeshIndex",
+           "contacts_from_mesh", "load_stl", "mesh_contacts", "mesh_from_triangles",
+           "mesh_resolution_mm"]
 
 NORMAL_METHODS = ("smooth", "phong", "center", "facet")
 
@@ -67,7 +78,7 @@ _STL_READ_ERRORS = (ValueError, RuntimeError, AssertionError, OSError, IndexErro
 
 @dataclass(frozen=True)
 class Mesh:
-    """An indexed triangle mesh (libigl's ``V``, ``F`` naming).
+    """An indexed triangle mesh (libigl's names).
 
     Attributes
     ----------
@@ -98,35 +109,30 @@ class Mesh:
 
 
 def mesh_from_triangles(tri_mm: np.ndarray, merge_tol_mm: float = 1e-6) -> Mesh:
-    """Index a triangle soup, merging vertices that coincide.
+    """Index a triangle soup, merging corners that round to the same point.
 
     Parameters
     ----------
     tri_mm : (nf, 3, 3) float
-        Corner positions of each triangle, mm (STL order).
+        Corners of each triangle, mm (STL order).
     merge_tol_mm : float
-        Vertices are merged when they round to the same point on a grid of this
-        pitch, so shared corners become shared vertices and vertex normals can
-        be computed.
+        Pitch of the rounding grid.
 
     Returns
     -------
     Mesh
-        Triangles that collapse to a segment or a point after merging are dropped.
+        Shared corners are shared vertices; triangles that collapse are dropped.
     """
     pts = np.asarray(tri_mm, dtype=np.float64).reshape(-1, 3)
     key = np.round(pts / merge_tol_mm).astype(np.int64)
     order = np.lexsort(key.T[::-1])
-    sorted_key = key[order]
     new = np.ones(len(order), dtype=bool)
-    new[1:] = np.any(sorted_key[1:] != sorted_key[:-1], axis=1)
-    group = np.cumsum(new) - 1
+    new[1:] = np.any(key[order[1:]] != key[order[:-1]], axis=1)
     inverse = np.empty(len(order), dtype=np.int64)
-    inverse[order] = group
-    V = pts[order[new]]
+    inverse[order] = np.cumsum(new) - 1
     F = inverse.reshape(-1, 3)
     keep = (F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 2] != F[:, 0])
-    return Mesh(V=V, F=F[keep])
+    return Mesh(V=pts[order[new]], F=F[keep])
 
 
 def _stl_mode(path: Path) -> Mode:
@@ -141,12 +147,12 @@ def _stl_mode(path: Path) -> Mode:
         return Mode.ASCII
     if size < 84:
         raise MeshError("file too short for an STL; export the part as STL", path=str(path))
-    raise MeshError(f"binary STL header says {count} triangles but the file size is {size} "
+    raise MeshError(f"binary STL header says {count} triangles but the file has {size} "
                     "bytes (truncated or not an STL); export the part again", path=str(path))
 
 
 def load_stl(path: str | os.PathLike, merge_tol_mm: float = 1e-6) -> Mesh:
-    """Read a binary or ASCII STL file (all solids of an ASCII file).
+    """Read a binary or ASCII STL file (every solid of an ASCII file).
 
     Parameters
     ----------
@@ -162,8 +168,8 @@ def load_stl(path: str | os.PathLike, merge_tol_mm: float = 1e-6) -> Mesh:
     Raises
     ------
     MeshError
-        The file is missing, unreadable, truncated, has no triangles or
-        non-finite coordinates.  ``str(err)`` starts with the path.
+        Missing, unreadable or truncated file, no triangles, non-finite
+        coordinates.  ``str(err)`` starts with the path.
     """
     p = Path(path)
     if not p.is_file():
@@ -178,8 +184,7 @@ def load_stl(path: str | os.PathLike, merge_tol_mm: float = 1e-6) -> Mesh:
     if tri.shape[0] == 0:
         raise MeshError("the STL holds no triangles; export the part again", path=str(p))
     if not np.all(np.isfinite(tri)):
-        raise MeshError("the STL holds non-finite coordinates; export the part again",
-                        path=str(p))
+        raise MeshError("the STL holds non-finite coordinates; export it again", path=str(p))
     mesh = mesh_from_triangles(tri, merge_tol_mm)
     if mesh.n_faces == 0:
         raise MeshError("every triangle of the STL is degenerate", path=str(p))
@@ -204,8 +209,7 @@ def mesh_resolution_mm(mesh: Mesh) -> EdgeLengths:
     Returns
     -------
     EdgeLengths
-        Over all triangle edges (interior edges count twice), mm.  With an edge
-        length ``h`` on a surface of curvature radius ``rho`` adjacent facets
+        Over all triangle edges, mm.  Facets of edge ``h`` on a radius ``rho``
         differ by about ``h / rho`` rad; facet normals err by up to half that.
     """
     P = mesh.V[mesh.F]
@@ -220,10 +224,8 @@ def mesh_resolution_mm(mesh: Mesh) -> EdgeLengths:
 
 
 class Closest(NamedTuple):
-    """Closest mesh points of query points, in query order.
-
-    dist_mm : (m,) float64, face : (m,) int64, point_mm : (m, 3) float64
-    """
+    """Closest mesh points, in query order: ``dist_mm (m,)``, ``face (m,) int64``,
+    ``point_mm (m, 3)``."""
 
     dist_mm: np.ndarray
     face: np.ndarray
@@ -282,14 +284,13 @@ class MeshIndex:
     pool_min_points : int or None
         Work on at least this many points runs chunk by chunk in a pool of
         forked processes (POSIX; serial elsewhere); None: always serial.  Both
-        give identical results.  libigl's query is itself multi-threaded, so
-        the pool only spreads the numpy work (see the module docstring).
+        give identical results.
     chunk_points : int
-        Points per chunk: bounds the temporaries, unit of work for the pool.
+        Points per chunk: bounds the temporaries; the pool's unit of work.
     processes : int or None
         Pool size; default: the CPUs this process may use.
     corner_normals : (nf, 3, 3) float64 or None
-        Normals to interpolate instead of the default ones (see below).
+        Normals to interpolate instead of the default ``corner_normal``.
 
     Attributes
     ----------
@@ -317,21 +318,16 @@ class MeshIndex:
         self._tree.init(mesh.V, mesh.F)
         P = mesh.V[mesh.F]
         self.face_normal = _unit(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]))
-        self.feature_edge = self._feature_edges()
+        tt, _ = igl.triangle_triangle_adjacency(mesh.F)
+        cos_angle = np.einsum("fj,fkj->fk", self.face_normal, self.face_normal[np.maximum(tt, 0)])
+        self.feature_edge = (tt < 0) | (cos_angle < np.cos(np.radians(self.feature_angle_deg)))
         if corner_normals is None:
             corner_normals = self._corner_normals()
         cn = np.asarray(corner_normals, dtype=np.float64).reshape(-1, 3, 3)
         bad = ~np.all(np.isfinite(cn), axis=2) | (np.linalg.norm(cn, axis=2) < 0.5)
         self.corner_normal = np.where(bad[:, :, None], self.face_normal[:, None, :], _unit(cn))
 
-    def _feature_edges(self) -> np.ndarray:
-        tt, _ = igl.triangle_triangle_adjacency(self.mesh.F)
-        fn = self.face_normal
-        cos_angle = np.einsum("fj,fkj->fk", fn, fn[np.maximum(tt, 0)])
-        return (tt < 0) | (cos_angle < np.cos(np.radians(self.feature_angle_deg)))
-
     def _corner_normals(self) -> np.ndarray:
-        # angle weights measured twice as accurate as area weights (module docstring)
         V, F = self.mesh.V, self.mesh.F
         cn = igl.per_vertex_normals(V, F, igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_ANGLE)[F]
         sharp = np.zeros(V.shape[0], dtype=bool)
@@ -368,16 +364,7 @@ class MeshIndex:
         return np.sqrt(np.maximum(sqr, 0.0)), face.astype(np.int64), point
 
     def closest(self, points_mm: np.ndarray) -> Closest:
-        """Closest mesh point of each query point, in chunks, in query order.
-
-        Parameters
-        ----------
-        points_mm : (m, 3) float64
-
-        Returns
-        -------
-        Closest
-        """
+        """Closest mesh point of each query point ``(m, 3)``, in chunks, in order."""
         return Closest(*self.map_chunks(self._query, points_mm))
 
 
@@ -385,7 +372,7 @@ class MeshIndex:
 
 
 class _Frame(NamedTuple):
-    """Face frame at points: ``x = p0 + u e1 + v e2``; corner normals ``n0 + u m1 + v m2``."""
+    """Points in their faces: ``x = p0 + u e1 + v e2``; normals ``n0 + u m1 + v m2``."""
 
     p0: np.ndarray
     e1: np.ndarray
@@ -402,12 +389,10 @@ class _Frame(NamedTuple):
 
 
 def _frame(index: MeshIndex, face: np.ndarray, x: np.ndarray) -> _Frame:
-    P = index.mesh.V[index.mesh.F[face]]
-    N = index.corner_normal[face]
+    P, N = index.mesh.V[index.mesh.F[face]], index.corner_normal[face]
     p0, e1, e2 = P[:, 0], P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
     d = x - p0
-    d00, d01, d11 = _dot(e1, e1), _dot(e1, e2), _dot(e2, e2)
-    d20, d21 = _dot(d, e1), _dot(d, e2)
+    d00, d01, d11, d20, d21 = _dot(e1, e1), _dot(e1, e2), _dot(e2, e2), _dot(d, e1), _dot(d, e2)
     with np.errstate(divide="ignore", invalid="ignore"):
         den = d00 * d11 - d01 * d01
         u, v = (d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den
@@ -415,17 +400,10 @@ def _frame(index: MeshIndex, face: np.ndarray, x: np.ndarray) -> _Frame:
 
 
 def _offset_newton(fr: _Frame, centre: np.ndarray, steps: int = 2) -> tuple:
-    """Point ``p`` of the face plane with ``centre = p + t n(p)``, ``n`` the Phong field.
+    """Unit normal at ``p`` (face plane) with ``centre = p + t n(p)``; min barycentric of p.
 
-    ``n`` is linear in ``(u, v)`` on a face, so each Newton step on
-    ``(u, v, t)`` is a 3x3 solve (Cramer's rule, vectorised).
-
-    Returns
-    -------
-    normal : (m, 3) float64
-        Unit smoothed normal at ``p``.
-    bary_min : (m,) float64
-        Smallest barycentric coordinate of ``p``: < 0 where ``p`` left the face.
+    ``n`` is linear in ``(u, v)`` on a face: each Newton step on ``(u, v, t)``
+    is a 3x3 solve (Cramer's rule).  A negative coordinate: ``p`` left the face.
     """
     u, v = fr.u, fr.v
     m = fr.phong(u, v)
@@ -444,21 +422,19 @@ def _offset_newton(fr: _Frame, centre: np.ndarray, steps: int = 2) -> tuple:
     return _unit(m), np.where(np.isfinite(bary_min), bary_min, -np.inf)
 
 
-def _on_feature_edge(index: MeshIndex, face: np.ndarray, fr: _Frame,
-                     eps: float = 1e-6) -> np.ndarray:
+def _on_feature_edge(index: MeshIndex, face: np.ndarray, fr: _Frame) -> np.ndarray:
     """The CC point lies on a sharp or boundary edge of its face (or at its ends)."""
     # edge k joins corners k and k+1: it is where the coordinate of corner k+2 vanishes
     opposite = np.stack([fr.v, 1.0 - fr.u - fr.v, fr.u], axis=1)
-    return np.any((opposite <= eps) & index.feature_edge[face], axis=1)
+    return np.any((opposite <= 1e-6) & index.feature_edge[face], axis=1)
 
 
 def _clamp_cone(axis: np.ndarray, n: np.ndarray, max_rad: np.ndarray) -> np.ndarray:
     """Rotate unit rows ``n`` toward ``axis`` until within ``max_rad`` of it."""
     cos_a = np.clip(_dot(axis, n), -1.0, 1.0)
-    over = np.arccos(cos_a) > max_rad
     perp = _unit(n - cos_a[:, None] * axis)
     clamped = np.cos(max_rad)[:, None] * axis + np.sin(max_rad)[:, None] * perp
-    return np.where(over[:, None], clamped, n)
+    return np.where((np.arccos(cos_a) > max_rad)[:, None], clamped, n)
 
 
 def _orient(normal: np.ndarray, toward: np.ndarray) -> np.ndarray:
@@ -466,11 +442,8 @@ def _orient(normal: np.ndarray, toward: np.ndarray) -> np.ndarray:
     return np.where((_dot(normal, toward) < 0)[:, None], -normal, normal)
 
 
-# The Newton correction may move the normal away from the Phong normal at the
-# CC point by at most this many times the angle between that and the
-# CC->centre direction: where a concave surface nearly fits the tool (R ~ rho)
-# the solve amplifies vertex-normal errors (measured: k = 2 bounds the worst
-# cases and keeps the median gain; module docstring).
+# How far (in multiples of the phong / CC->centre angle) Newton may move the
+# normal from phong: 1 loses accuracy, 4+ lets concave near-fits blow up.
 _NEWTON_CONE = 2.0
 
 
@@ -482,8 +455,7 @@ def _smooth_normal(index: MeshIndex, cl: Closest, fr: _Frame, centre: np.ndarray
     normal, bary_min = _offset_newton(fr, centre)
     normal = _clamp_cone(phong, _orient(normal, n_center), cone)
     left = np.flatnonzero(bary_min < -0.05)
-    if left.size:
-        # p left its face: restart in the face holding the closest point to p
+    if left.size:  # p left its face: redo in the face holding the closest point to p
         again = Closest(*index._query(centre[left] - normal[left] * cl.dist_mm[left, None]))
         redo = _offset_newton(_frame(index, again.face, again.point_mm), centre[left])[0]
         normal[left] = _clamp_cone(phong[left], _orient(redo, n_center[left]), cone[left])
@@ -498,8 +470,7 @@ def _contact_normal(index: MeshIndex, cl: Closest, centre: np.ndarray,
     """Unit normal at each CC point, oriented toward the tool."""
     n_center = _unit(centre - cl.point_mm)
     facet = index.face_normal[cl.face]
-    # centre on the mesh (deep gouge): no direction; take the facet's, upward
-    lost = ~np.any(n_center, axis=1)
+    lost = ~np.any(n_center, axis=1)  # centre on the mesh: take the facet's, upward
     n_center[lost] = _orient(facet[lost], np.array([[0.0, 0.0, 1.0]]))
     if method == "center":
         return n_center
@@ -512,6 +483,105 @@ def _contact_normal(index: MeshIndex, cl: Closest, centre: np.ndarray,
     return _smooth_normal(index, cl, fr, centre, n_center)
 
 
+# ---------------------------------------------------------------- bull-nose search
+
+
+def _core_points(centers: np.ndarray, normal: np.ndarray, flat_mm: float) -> np.ndarray:
+    """Ring point facing a contact: ``centre - (R - r) unit(n_xy)`` (the side the
+    surface rises); the centre itself where ``n_xy ~ 0`` (the flat bottom touches)."""
+    nxy = normal * np.array([1.0, 1.0, 0.0])
+    length = np.linalg.norm(nxy, axis=1, keepdims=True)
+    return centers - flat_mm * np.divide(nxy, length, out=np.zeros_like(nxy),
+                                         where=length > 1e-9)
+
+
+def _keep_nearer(best: Closest, best_core: np.ndarray, rows: np.ndarray, got: Closest,
+                 core: np.ndarray) -> None:
+    """Where ``got`` (for ``rows``, queried at ``core``) is nearer, update ``best`` in place."""
+    better = got.dist_mm < best.dist_mm[rows]
+    sel = rows[better]
+    best.dist_mm[sel], best.face[sel] = got.dist_mm[better], got.face[better]
+    best.point_mm[sel], best_core[sel] = got.point_mm[better], core[better]
+
+
+def _ring_points(centers: np.ndarray, radius_mm: float, az: np.ndarray) -> np.ndarray:
+    return centers + radius_mm * np.stack([np.cos(az), np.sin(az), 0.0 * az], axis=-1)
+
+
+# Search effort near contact: fixed-point steps, ring and half-radius seeds,
+# azimuth bisections, projections onto the disc (about 21 queries a point).
+_FIXED, _RING, _INNER, _HALVINGS, _PROJECT = 2, 8, 4, 4, 2
+
+
+def _fixed_point(index: MeshIndex, centers: np.ndarray, flat_mm: float, best: Closest,
+                 best_core: np.ndarray, rows: np.ndarray) -> None:
+    """Ring point facing the contact normal, repeated (exact on a plane)."""
+    core, current = centers.copy(), Closest(*(a[rows] for a in best))
+    for _ in range(_FIXED):
+        new = _core_points(centers[rows], _unit(core[rows] - current.point_mm), flat_mm)
+        moved = np.linalg.norm(new - core[rows], axis=1) > 1e-3
+        core[rows] = new
+        rows = rows[moved]
+        if rows.size == 0:
+            return
+        current = Closest(*index._query(core[rows]))
+        _keep_nearer(best, best_core, rows, current, core[rows])
+
+
+def _seeded_ring_search(index: MeshIndex, centers: np.ndarray, flat_mm: float,
+                        best: Closest, best_core: np.ndarray, rows: np.ndarray) -> None:
+    """Seeds on the ring and at half radius; bisect the best ring bracket on d dist/d az."""
+    c = centers[rows]
+    az = 2.0 * np.pi * np.arange(_RING) / _RING
+    inner = 2.0 * np.pi * np.arange(_INNER) / max(_INNER, 1) + np.pi / _RING
+    seeds = np.concatenate([_ring_points(c[None], flat_mm, az[:, None] + 0 * rows),
+                            _ring_points(c[None], 0.5 * flat_mm, inner[:, None] + 0 * rows)])
+    got = Closest(*(a.reshape(len(seeds), rows.size, *a.shape[1:])
+                    for a in index._query(seeds.reshape(-1, 3))))
+    pick = (np.argmin(got.dist_mm, axis=0), np.arange(rows.size))
+    _keep_nearer(best, best_core, rows, Closest(*(a[pick] for a in got)), seeds[pick])
+    mid = az[np.argmin(got.dist_mm[:_RING], axis=0)]
+    lo, hi = mid - np.pi / _RING, mid + np.pi / _RING
+    for _ in range(_HALVINGS):
+        mid = 0.5 * (lo + hi)
+        core = _ring_points(c, flat_mm, mid)
+        current = Closest(*index._query(core))
+        _keep_nearer(best, best_core, rows, current, core)
+        tangent = np.stack([-np.sin(mid), np.cos(mid), 0.0 * mid], axis=1)
+        rising = _dot(core - current.point_mm, tangent) > 0
+        hi, lo = np.where(rising, mid, hi), np.where(rising, lo, mid)
+
+
+def _project_to_disc(index: MeshIndex, centers: np.ndarray, flat_mm: float, best: Closest,
+                     best_core: np.ndarray, rows: np.ndarray) -> None:
+    """Disc point above the contact (the flat bottom on a bump under the tool)."""
+    for _ in range(_PROJECT):
+        off = (best.point_mm - centers)[rows] * [1.0, 1.0, 0.0]
+        length = np.linalg.norm(off, axis=1, keepdims=True)
+        core = centers[rows] + off * np.minimum(1.0, flat_mm / np.maximum(length, 1e-12))
+        _keep_nearer(best, best_core, rows, Closest(*index._query(core)), core)
+
+
+def _torus_closest(index: MeshIndex, centers: np.ndarray, cutter: Cutter,
+                   band_mm: float) -> tuple[np.ndarray, Closest]:
+    """Point of the core disc nearest the mesh, and its closest mesh points.
+
+    The clearance is a minimum over the disc (radius R - r), so each disc
+    point queried bounds it from above: keep the nearest.  The fixed point
+    alone cycles where the slope is low and the surface curved across the
+    ring, and never finds a second bump: seeds, an azimuth search and
+    projections follow where the clearance could be below ``band_mm``.
+    """
+    flat_mm = cutter.radius_mm - cutter.corner_radius_mm
+    best = Closest(*index._query(centers))
+    best_core = centers.copy()
+    near = np.flatnonzero(best.dist_mm - flat_mm - cutter.corner_radius_mm < band_mm)
+    if near.size:
+        for step in (_fixed_point, _seeded_ring_search, _project_to_disc):
+            step(index, centers, flat_mm, best, best_core, near)
+    return best_core, best
+
+
 # ---------------------------------------------------------------- contacts
 
 
@@ -522,14 +592,13 @@ class MeshContacts:
     Attributes
     ----------
     contacts : Contacts
-        CC points (the closest mesh points), normals toward the tool, ``R_eff``
-        from :func:`ncopt.tools.r_eff_mm`, ``cutting = gap_mm <= tol_mm``.
+        CC points (closest mesh points), normals toward the tool, ``R_eff``
+        (:func:`ncopt.tools.r_eff_mm`), ``cutting = gap_mm <= tol_mm``.
     gap_mm : (m,) float64
-        Distance from the cutter surface to the mesh less ``stock_mm``, mm;
-        negative where the cutter is inside the part.
+        Clearance of the cutter from the mesh less ``stock_mm``, mm; negative
+        inside the part.  For bull-nose air points an upper bound.
     gouging : (m,) bool
-        ``gap_mm < -tol_mm``.  Any such point suggests a wrong tool, mesh,
-        tool point or stock allowance.
+        ``gap_mm < -tol_mm``: suggests a wrong tool, mesh, tool point or stock.
     face : (m,) int64
         Mesh face holding each CC point.
     """
@@ -544,88 +613,18 @@ class MeshContacts:
         return int(np.count_nonzero(self.gouging))
 
 
-def _core_points(centers: np.ndarray, normal: np.ndarray, flat_mm: float) -> np.ndarray:
-    """Torus core point facing a contact of normal ``normal``.
-
-    The torus touches a surface on the side where it rises, i.e. at
-    ``centre - (R - r) unit(n_xy)``; with ``n_xy ~ 0`` (the flat bottom
-    touches) the core point is the centre itself.
-    """
-    nxy = normal * np.array([1.0, 1.0, 0.0])
-    length = np.linalg.norm(nxy, axis=1, keepdims=True)
-    return centers - flat_mm * np.divide(nxy, length, out=np.zeros_like(nxy),
-                                         where=length > 1e-9)
-
-
-def _torus_descend(index: MeshIndex, centers: np.ndarray, core: np.ndarray, flat_mm: float,
-                   iterations: int) -> tuple[np.ndarray, Closest]:
-    """Fixed-point iteration from ``core``; the best core point seen and its closest points.
-
-    The clearance is a minimum over the core disc, so each core point visited
-    bounds it from above: keep the smallest.
-    """
-    core = core.copy()
-    best = current = Closest(*index._query(core))
-    best_core = core.copy()
-    active = np.arange(len(centers))
-    for _ in range(iterations):
-        new = _core_points(centers[active], _unit(core[active] - current.point_mm), flat_mm)
-        moved = np.linalg.norm(new - core[active], axis=1) > _CORE_STEP_MM
-        core[active] = new
-        active = active[moved]
-        if active.size == 0:
-            break
-        current = Closest(*index._query(core[active]))
-        better = current.dist_mm < best.dist_mm[active]
-        sel = active[better]
-        best.dist_mm[sel], best.face[sel] = current.dist_mm[better], current.face[better]
-        best.point_mm[sel], best_core[sel] = current.point_mm[better], core[sel]
-    return best_core, best
-
-
-_CORE_STEP_MM = 1e-3
-_MIRROR = "all"
-
-
-def _torus_closest(index: MeshIndex, centers: np.ndarray, flat_mm: float,
-                   iterations: int) -> tuple[np.ndarray, Closest]:
-    """Core-circle point nearest the mesh: descend from the centre, then from the mirror.
-
-    Where the surface rises on both sides (a valley) the first descent may
-    settle on the higher side; a second one from the opposite side of the ring
-    finds the other contact.
-    """
-    core, cl = _torus_descend(index, centers, centers, flat_mm, iterations)
-    off = np.flatnonzero(np.linalg.norm(core - centers, axis=1) > _CORE_STEP_MM)
-    if _MIRROR == "none" or off.size == 0:
-        return core, cl
-    if _MIRROR == "near":
-        probe = Closest(*index._query(2.0 * centers[off] - core[off]))
-        off = off[probe.dist_mm < cl.dist_mm[off] + 0.5 * flat_mm]
-    core2, cl2 = _torus_descend(index, centers[off], 2.0 * centers[off] - core[off], flat_mm,
-                                iterations)
-    better = cl2.dist_mm < cl.dist_mm[off]
-    sel = off[better]
-    core[sel], cl.dist_mm[sel], cl.face[sel] = core2[better], cl2.dist_mm[better], cl2.face[better]
-    cl.point_mm[sel] = cl2.point_mm[better]
-    return core, cl
-
-
 def _contacts_chunk(centers: np.ndarray, index: MeshIndex, cutter: Cutter, normals: str,
-                    iterations: int) -> tuple:
-    """CC points, normals, distances and faces of one chunk of centres."""
+                    band_mm: float) -> tuple:
     if cutter.is_ball:
         core, cl = centers, Closest(*index._query(centers))
     else:
-        flat_mm = cutter.radius_mm - cutter.corner_radius_mm
-        core, cl = _torus_closest(index, centers, flat_mm, iterations)
-    normal = _contact_normal(index, cl, core, normals)
-    return cl.point_mm, normal, cl.dist_mm, cl.face
+        core, cl = _torus_closest(index, centers, cutter, band_mm)
+    return cl.point_mm, _contact_normal(index, cl, core, normals), cl.dist_mm, cl.face
 
 
 def mesh_contacts(centers_mm: np.ndarray, mesh_index: MeshIndex, cutter: Cutter,
-                  tol_mm: float = 0.05, *, stock_mm: float = 0.0, normals: str = "smooth",
-                  torus_iterations: int = 8) -> MeshContacts:
+                  tol_mm: float = 0.05, *, stock_mm: float = 0.0,
+                  normals: str = "smooth") -> MeshContacts:
     """Contacts of a ball or bull-nose cutter with a mesh, with clearances.
 
     Parameters
@@ -636,14 +635,12 @@ def mesh_contacts(centers_mm: np.ndarray, mesh_index: MeshIndex, cutter: Cutter,
     mesh_index : MeshIndex
     cutter : Cutter
     tol_mm : float
-        The cutter touches the part where its clearance is within this of
-        ``stock_mm`` (mesh chord error + CAM tolerance), mm.
+        Contact where the clearance is within this of ``stock_mm`` (mesh
+        chord error + CAM tolerance), mm.
     stock_mm : float
         Allowance the program leaves on the part, mm.
     normals : {"smooth", "phong", "center", "facet"}
         Contact normal estimate (module docstring).
-    torus_iterations : int
-        Fixed-point iterations of the bull-nose contact search.
 
     Returns
     -------
@@ -659,7 +656,7 @@ def mesh_contacts(centers_mm: np.ndarray, mesh_index: MeshIndex, cutter: Cutter,
     if not np.all(np.isfinite(c)):
         raise ValueError("centers_mm holds non-finite coordinates")
     work = functools.partial(_contacts_chunk, index=mesh_index, cutter=cutter,
-                             normals=normals, iterations=torus_iterations)
+                             normals=normals, band_mm=stock_mm + tol_mm)
     cc, normal, dist, face = mesh_index.map_chunks(work, c)
     gap = dist - cutter.corner_radius_mm - stock_mm
     contacts = Contacts(cc_mm=cc, normal=normal, r_eff_mm=tools.r_eff_mm(cutter, normal),
@@ -670,20 +667,6 @@ def mesh_contacts(centers_mm: np.ndarray, mesh_index: MeshIndex, cutter: Cutter,
 def contacts_from_mesh(centers_mm: np.ndarray, mesh_index: MeshIndex, cutter: Cutter,
                        tol_mm: float = 0.05, *, stock_mm: float = 0.0,
                        normals: str = "smooth") -> Contacts:
-    """Contacts of a cutter with a mesh: :func:`mesh_contacts` without the clearances.
-
-    Parameters
-    ----------
-    centers_mm : (m, 3) float64
-        Ball centres or torus core-circle centres, mm.
-    mesh_index : MeshIndex
-    cutter : Cutter
-    tol_mm, stock_mm, normals
-        As for :func:`mesh_contacts`.
-
-    Returns
-    -------
-    Contacts
-    """
+    """:func:`mesh_contacts` without the clearances (same parameters); returns Contacts."""
     return mesh_contacts(centers_mm, mesh_index, cutter, tol_mm, stock_mm=stock_mm,
                          normals=normals).contacts

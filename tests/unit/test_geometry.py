@@ -140,6 +140,45 @@ def test_bull_nose_on_30_degree_slope():
     assert mc.contacts.cutting.all() and abs(mc.gap_mm[0]) < 1e-9
 
 
+def bull_centres(p: np.ndarray, n: np.ndarray, cutter: Cutter) -> np.ndarray:
+    """Core-circle centres touching at ``p`` (normal ``n``) on the side the surface rises."""
+    n_xy = n * [1.0, 1.0, 0.0]
+    ring = n_xy / np.maximum(np.linalg.norm(n_xy, axis=1, keepdims=True), 1e-12)
+    r = cutter.corner_radius_mm
+    return p + r * n + (cutter.radius_mm - r) * ring
+
+
+def test_bull_nose_on_a_sphere(sphere_index):
+    u = directions(300, seed=5, max_tilt_deg=70.0)
+    mc = mesh_contacts(bull_centres(20.0 * u, u, BULL), sphere_index, BULL)
+    expected = 6.0 + 2.0 * np.linalg.norm(u[:, :2], axis=1)
+    # facets sag up to h^2 / (8 rho) ~ 0.02 mm below the sphere; near the top the
+    # flat then meets the mesh up to an edge (1.4 mm, ~2 deg of tilt) away
+    np.testing.assert_allclose(mc.contacts.r_eff_mm, expected, atol=0.06)
+    assert np.median(np.abs(mc.contacts.r_eff_mm - expected)) < 0.005
+    assert np.max(np.abs(mc.gap_mm)) < 0.03 and mc.contacts.cutting.all()
+
+
+def test_bull_nose_finds_the_lowest_point_of_its_disc_on_a_saddle():
+    xs = np.linspace(-30.0, 30.0, 61)
+    X, Y = np.meshgrid(xs, xs, indexing="ij")
+    mesh = grid_mesh(xs, xs, lambda x: 0 * x)
+    mesh = Mesh(np.c_[mesh.V[:, :2], (mesh.V[:, 0] ** 2 - mesh.V[:, 1] ** 2) / 60.0], mesh.F)
+    index = MeshIndex(mesh)
+    xy = np.random.default_rng(6).uniform(-12.0, 12.0, (150, 2))
+    grad = xy * [1.0, -1.0] / 30.0
+    n = np.c_[-grad, np.ones(len(xy))] / np.sqrt(1.0 + (grad**2).sum(1))[:, None]
+    p = np.c_[xy, (xy[:, 0] ** 2 - xy[:, 1] ** 2) / 60.0]
+    centres = bull_centres(p, n, BULL)
+    brute = np.full(len(p), np.inf)
+    for rad, step in ((0.0, 360), (2.0, 10), (4.0, 10), (6.0, 2)):
+        for a in np.radians(np.arange(0, 360, step)):
+            ring = centres + rad * np.array([np.cos(a), np.sin(a), 0.0])
+            brute = np.minimum(brute, index.closest(ring).dist_mm - 2.0)
+    gap = mesh_contacts(centres, index, BULL).gap_mm
+    assert np.all(gap <= brute + 0.01)
+
+
 def test_air_gouge_and_stock():
     index = MeshIndex(plane_mesh(0.0))
     centres = np.array([[0, 0, 5.0], [0, 0, 4.02], [0, 0, 3.5], [0, 0, 4.2]])
