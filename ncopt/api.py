@@ -70,6 +70,7 @@ class ToolPlan:
     f_mm_min: np.ndarray
     sampled: Sampled
     close_s_words: int = 0
+    over_target: tuple = (0, 0.0)  # (blocks, worst vc excess %) forced by the program's own S
 
 
 @dataclass(frozen=True)
@@ -234,7 +235,18 @@ def _plan_tool(tp, idx, job, mesh_index, tool, cutter, source, selected, path) -
         job.machine.rapid_mm_min)
     emitted, f_mm, _ = planner.plan(blocks, job.machine, cut, cutter.teeth, job.options)
     return ToolPlan(tool, cutter, cut, source, blocks, emitted.s_cmd_rpm, f_mm, sampled,
-                    emitted.close_s_words)
+                    emitted.close_s_words, _over_target(blocks, emitted, job, cut, cutter))
+
+
+def _over_target(blocks, emitted, job, cut, cutter) -> tuple:
+    """Cutting blocks where the real spindle stays above the requirement (after the
+    program's own S in a block ncopt could not plan): (count, worst vc excess %)."""
+    s_lo, s_hi = planner.speed_limits(job.machine, cut, cutter.teeth)
+    req = np.clip(blocks.req_rpm, s_lo, s_hi)
+    c = blocks.cutting & blocks.planned
+    excess = emitted.s_high_rpm[c] / req[c] - 1.0
+    bad = excess > 1e-3
+    return (int(bad.sum()), float(100.0 * excess[bad].max()) if bad.any() else 0.0)
 
 
 def nominal_cutting_data(tp: Toolpath, selected: np.ndarray, cutter: Cutter,
@@ -325,7 +337,12 @@ def _summary(prog, tp, idx, plans, skipped, edits, mesh_index) -> Summary:
         tools=tuple((p.tool, _describe(p.cutter), p.source) for p in plans),
         skipped_tools=tuple(skipped),
         mesh_edge_mm=float(mesh_resolution_mm(mesh_index.mesh).median_mm) if mesh_index else None,
-        warnings=tp.warnings, close_s_words=sum(p.close_s_words for p in plans))
+        warnings=tp.warnings + tuple(
+            f"{prog.path}: T{p.tool}: vc up to {p.over_target[1]:.1f} % above its target on "
+            f"{p.over_target[0]} cutting blocks, where the spindle is still falling from an S "
+            "that ncopt could not plan (a block it left as programmed)"
+            for p in plans if p.over_target[0]),
+        close_s_words=sum(p.close_s_words for p in plans))
     est = first.sampled.estimate
     if est is not None:
         summary = replace(summary, normals_from="toolpath", stepover_mm=est.stepover_mm,

@@ -561,7 +561,8 @@ def _center_from_r(prog, i, p0, p1, radius, cw, a, b):
         _fail(prog, i, "R-format arc with identical start and end point; use I/J/K")
     r = abs(radius)
     if chord > 2 * r + 1e-6:
-        _fail(prog, i, f"arc radius {r:.4f} mm is too small for the chord {chord:.4f} mm")
+        _fail(prog, i, f"arc radius {r:.4f} mm is too small for the chord {chord:.4f} mm; "
+              "correct R or the end point")
     h = math.sqrt(max(r * r - chord * chord / 4, 0.0))
     # the centre lies left of the chord for CCW short arcs; R < 0 asks for the long arc
     sign = (1 if not cw else -1) * (1 if radius > 0 else -1)

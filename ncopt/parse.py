@@ -106,6 +106,8 @@ def parse_text(text: str, path: str = "<input>", *, use_fast_path: bool = True,
         For the first malformed line, with line, column and a caret context.
     """
     raw = np.frombuffer(text.encode("latin-1"), dtype=np.uint8)
+    if raw.shape[0] == 0:
+        return _empty(path, text)
     line_start, content_end = _split_lines(raw)
     n_lines = line_start.shape[0] - 1
     fast, blank, words = _fast_path(raw, line_start, content_end)
@@ -137,6 +139,16 @@ def parse_text(text: str, path: str = "<input>", *, use_fast_path: bool = True,
         if progress is not None:
             progress(i)
     return _assemble(path, text, line_start, kind, has_expr, words, slow_words, opaque, exprs)
+
+
+def _empty(path: str, text: str) -> Program:
+    """A program with no lines at all (an empty file)."""
+    i32, i64 = np.zeros(0, np.int32), np.zeros(0, np.int64)
+    return Program(path=path, text=text, line_start=np.zeros(1, np.int64),
+                   line_kind=np.zeros(0, np.int8), line_has_expr=np.zeros(0, bool),
+                   word_line=i32, word_letter=np.zeros(0, np.uint8),
+                   word_value=np.zeros(0, np.float64), word_start=i64, word_end=i64,
+                   word_num_start=i64)
 
 
 def _split_lines(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -24,6 +24,9 @@ from .errors import PlanningError
 from .model import CuttingData, Machine, PlanOptions
 
 MAX_ITERATIONS = 200
+# Running sums over a million blocks carry ~1e-4 RPM^2 of rounding: profiles that agree
+# to a millionth of an RPM are the same (a stricter test never converges there).
+CONVERGED_RPM = 1e-6
 # The profile keeps this share of the spindle's S^2 rate and of the fz band in
 # reserve, so that integer S words (rounded toward the limits) can always follow
 # it, even through a long deceleration at the full rate.
@@ -40,6 +43,9 @@ class Blocks:
     planned : ncopt may set the block's S/F
     time_s : duration of non-cutting blocks at their own feed or the rapid rate
     fixed_rpm : programmed S in force (used for blocks that are not planned)
+    spindle_start : the spindle (re)starts at this block (M3/M4 after a stop or a tool
+        change): the control brings it to speed, nothing carries over from before
+    running : the spindle turns during the block
     """
 
     length_mm: np.ndarray
@@ -48,6 +54,15 @@ class Blocks:
     planned: np.ndarray
     time_s: np.ndarray
     fixed_rpm: np.ndarray
+    spindle_start: np.ndarray | None = None
+    running: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        n = self.length_mm.shape[0]
+        if self.spindle_start is None:
+            object.__setattr__(self, "spindle_start", np.zeros(n, dtype=bool))
+        if self.running is None:
+            object.__setattr__(self, "running", np.ones(n, dtype=bool))
 
 
 @dataclass(frozen=True)
@@ -71,6 +86,8 @@ def max_speed_ratio(opts: PlanOptions, cut: CuttingData, teeth: int, s_low_rpm: 
     * ``centred`` (F = fz z 2 S_lo S_hi / (S_lo + S_hi)):  r <= (1 + tol - 2q) / (1 - tol)
     """
     tol = opts.fz_tolerance
+    if s_low_rpm is None:  # nothing cuts: no fz to hold
+        s_low_rpm = float("inf")
     q = opts.f_quantum_mm_min / (cut.fz_mm * teeth * max(s_low_rpm, 1.0))
     if opts.fz_policy not in ("centred", "below"):
         raise PlanningError(f"unknown fz policy {opts.fz_policy!r}; use centred or below")
@@ -104,8 +121,8 @@ def increments(blocks: Blocks, machine: Machine, k: float) -> tuple[np.ndarray, 
     inc_s : (nb,) RPM, other blocks: a*T over their whole duration T (inf for cutting)
     """
     ramp = machine.accel_rpm_s * blocks.time_s
-    inc_s2 = np.where(blocks.cutting, k * blocks.length_mm, np.inf)
-    inc_s = np.where(blocks.cutting, np.inf, ramp)
+    inc_s2 = np.where(blocks.cutting & ~blocks.spindle_start, k * blocks.length_mm, np.inf)
+    inc_s = np.where(blocks.cutting | blocks.spindle_start, np.inf, ramp)
     return inc_s2, inc_s
 
 
@@ -138,24 +155,69 @@ def lookahead(blocks: Blocks, machine: Machine, cut: CuttingData, teeth: int,
     cap = caps(blocks, s_lo, s_hi, lookahead=True)
     inc_s2, inc_s = increments(blocks, machine, k * (1.0 - PLAN_MARGIN))
     inc_s = inc_s * (1.0 - PLAN_MARGIN)
-    ratio = max_speed_ratio(opts, cut, teeth, _lowest_cut_cap(cap, blocks))
-    ratio_inc = np.where(blocks.cutting & blocks.planned,
-                         np.log(ratio) * (1.0 - PLAN_MARGIN), np.inf)
+    s_low_cut = _lowest_cut_cap(cap, blocks)
+    ratio = max_speed_ratio(opts, cut, teeth, s_low_cut)
+    # integer S words round each fall up by < 1 RPM: the profile keeps 2 RPM at the lowest
+    # cutting speed in reserve per block, so the words never lag behind it
+    budget = np.log(ratio) * (1.0 - PLAN_MARGIN) - (2.0 / s_low_cut if s_low_cut else 0.0)
+    if budget <= 0:
+        raise PlanningError(f"an fz band of {100 * opts.fz_tolerance:g} % is too narrow for "
+                            f"integer S words at {s_low_cut:.0f} RPM; widen --fz-band")
+    ratio_inc = np.where(blocks.cutting & blocks.planned, budget, np.inf)
     s = cap.copy()
     for _ in range(MAX_ITERATIONS):
         before = s
         s = np.sqrt(np.maximum(_two_way_min(s * s, inc_s2), 0.0))
         s = np.minimum(s, _two_way_min(s, inc_s))
         s = np.minimum(s, np.exp(_two_way_min(np.log(np.maximum(s, 1e-300)), ratio_inc)))
-        if np.allclose(s, before, rtol=1e-12, atol=1e-9):
+        if np.allclose(s, before, rtol=1e-12, atol=CONVERGED_RPM):
             break
     s = np.maximum(s, np.minimum(s_lo, cap))
+    s = _after_fixed(s, blocks, inc_s2, inc_s, ratio_inc, machine.max_rpm)  # with the reserve
     return Profile(s_rpm=s, cap_rpm=cap, k_rpm2_per_mm=k)
 
 
-def _lowest_cut_cap(cap: np.ndarray, blocks: Blocks) -> float:
+def _after_fixed(s, blocks, inc_s2, inc_s, ratio_inc, max_rpm):
+    """Blocks ncopt does not plan run at the program's own S, and the spindle falls
+    from there only as fast as it can: the profile is the real speed that results
+    (the envelope), never below it after such a block.  Where it lies above the
+    requirement, vc exceeds its target; the summary reports it."""
+    fixed = ~blocks.planned & blocks.running
+    if not fixed.any():
+        return s
+    env = np.where(fixed, blocks.fixed_rpm, 0.0)
+    for _ in range(MAX_ITERATIONS):
+        before = env
+        env = np.sqrt(np.maximum(_two_way_max_forward(env * env, inc_s2), 0.0))
+        env = np.maximum(env, _two_way_max_forward(env, inc_s))
+        env = np.maximum(env, np.exp(_two_way_max_forward(np.log(np.maximum(env, 1e-300)),
+                                                          ratio_inc)))
+        if np.allclose(env, before, rtol=1e-12, atol=CONVERGED_RPM):
+            break
+    return np.where(blocks.planned, np.minimum(np.maximum(s, env), max_rpm), env)
+
+
+def _two_way_max_forward(x: np.ndarray, inc: np.ndarray) -> np.ndarray:
+    """The smallest y >= x with y_b >= y_(b-1) - inc_b (a fall at most inc per block);
+    an infinite inc restarts the chain."""
+    return -_two_way_min_forward(-x, inc)
+
+
+def _two_way_min_forward(x: np.ndarray, inc: np.ndarray) -> np.ndarray:
+    n = x.shape[0]
+    if n == 0:
+        return x.copy()
+    brk = ~np.isfinite(inc)
+    brk[0] = True
+    seg = np.cumsum(brk) - 1
+    cum = np.cumsum(np.where(brk, 0.0, inc))
+    cum -= cum[np.flatnonzero(brk)][seg]
+    return cum + _segment_running_min(x - cum, seg, reverse=False)
+
+
+def _lowest_cut_cap(cap: np.ndarray, blocks: Blocks) -> float | None:
     cut = cap[blocks.cutting & blocks.planned]
-    return float(cut.min()) if cut.size else 1.0
+    return float(cut.min()) if cut.size else None
 
 
 def forward(blocks: Blocks, machine: Machine, cut: CuttingData, teeth: int,
@@ -286,15 +348,17 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
     length, time_free = blocks.length_mm.tolist(), blocks.time_s.tolist()
     cur = real = None
     since_s, close = math.inf, 0
+    starts = blocks.spindle_start.tolist()
     for b, target in enumerate(s_plan):
         before = cur
+        target = _snap(target)
         if fixed[b]:
             cur = fixed_rpm[b]
-        elif cur is None:  # the spindle-start block brings the spindle to speed
+        elif cur is None or starts[b]:  # a spindle start: the control brings it to speed
             cur = real = float(max(math.floor(target), lo_int))
         else:
             r = ratio if cutting[b] else math.inf
-            cur = _next_command(cur, real, target, inc_s2[b], inc_s[b], r, step)
+            cur = max(_next_command(cur, real, target, inc_s2[b], inc_s[b], r, step), lo_int)
             if cur > before and since_s < interval_s:
                 cur = before  # the control is still taking the previous S word
             elif cur < before and since_s < interval_s:
@@ -309,16 +373,43 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
     return Emitted(np.array(cmd_out), np.array(low_out), np.array(high_out), close)
 
 
+def _snap(rpm: float) -> float:
+    """A profile a few ulps under an integer is that integer (exp(log(x)) != x)."""
+    near = round(rpm)
+    return float(near) if abs(rpm - near) < 1e-9 * max(rpm, 1.0) else rpm
+
+
 def _next_command(cur: float, real: float, target: float, inc_s2: float, inc_s: float,
                   ratio: float, step: float) -> float:
+    new = _choose_command(cur, real, target, inc_s2, inc_s, ratio, step)
+    if math.isinf(ratio):
+        return new
+    # a command above the real speed (the spindle still rising, e.g. after the program's
+    # own S) may let it rise by no more than the fz band within the block
+    ceiling = math.floor(real * ratio)
+    if new > real and new > ceiling:
+        new = float(ceiling)
+        if abs(new - cur) < step:  # keep changes of at least one step
+            new = cur if cur <= ceiling else cur - step
+    return new
+
+
+def _choose_command(cur: float, real: float, target: float, inc_s2: float, inc_s: float,
+                    ratio: float, step: float) -> float:
     if target >= cur + step:  # rise; the fz band bounds it by the real speed
         up = math.floor(min(target, real * ratio))
         return float(up) if up >= cur + step else cur
-    if target < cur:  # fall now, completely inside this block, with margin against chatter
+    if target < cur:  # fall now, with margin against chatter
+        # the spindle limit may leave the real speed up to 1 RPM above an integer command
+        # (the ramp tracking keeps the real value); the fz band may not be crossed at all
         reach = max(math.sqrt(max(real * real - inc_s2, 0.0)), real - inc_s)
-        low = math.ceil(max(reach, real / ratio, 0.0))
+        band_floor = math.ceil(real / ratio) if not math.isinf(ratio) else 0
+        low = max(math.floor(reach), band_floor, 0)
         new = max(math.floor(target - step + 1), low)
-        return float(min(new, math.floor(target)) if low <= math.floor(target) else low)
+        new = min(new, math.floor(target)) if low <= math.floor(target) else low
+        if 0 < cur - new < step:  # a forced fall smaller than a step: a full step if fz allows
+            new = max(cur - step, band_floor)
+        return float(new)
     return cur
 
 
@@ -392,8 +483,11 @@ def blocks_from_contacts(idx: BlockIndex, seg_len_mm, motion, feed_mm_min, known
     cutting = block_cut & selected[fp]
     # rapids and air moves let the spindle ramp; a rapid needs no known start
     free = ~selected[fp] & spindle_on[fp] & (rapid | known[fp])
+    running = spindle_on[fp]
+    start = running & ~np.concatenate(([False], running[:-1]))
     return Blocks(length_mm=length, req_rpm=block_req, cutting=cutting,
-                  planned=selected[fp] | free, time_s=time_s, fixed_rpm=spindle_rpm[fp])
+                  planned=selected[fp] | free, time_s=time_s, fixed_rpm=spindle_rpm[fp],
+                  spindle_start=start, running=running)
 
 
 def plan(blocks: Blocks, machine: Machine, cut: CuttingData, teeth: int,

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import VerificationError
-from .model import Edit, Program
+from .model import Edit, LineKind, Program
 
 S_CODE, F_CODE = ord("S"), ord("F")
 
@@ -123,36 +123,51 @@ def _replace_words(prog, code, line, values, style) -> list[Edit]:
     """Existing words take the target of the first consumer at or after them."""
     c_line, c_val = _consumers(line, values)
     words = np.flatnonzero(prog.word_letter == code)
+    words = words[prog.line_kind[prog.word_line[words]] == LineKind.WORDS]  # opaque: never
     if words.size == 0 or c_line.size == 0:
         return []
     nxt = np.searchsorted(c_line, prog.word_line[words], side="left")
     ok = nxt < c_line.shape[0]
+    words, new = words[ok], c_val[nxt[ok]]
+    old = prog.word_value[words]
+    change = ~_same_formatted(old, new, style)  # NaN (an expression) always changes
     edits = []
-    for w, j in zip(words[ok].tolist(), nxt[ok].tolist()):
-        new = c_val[j]
-        old = prog.word_value[w]
-        if not math.isnan(old) and _same_formatted(np.array([old]), np.array([new]), style)[0]:
-            continue
+    for w, v, o in zip(words[change].tolist(), new[change].tolist(), old[change].tolist()):
         # an expression value ([#<fscale>*225], #1) is replaced whole, after the letter
-        start = int(prog.word_start[w]) + 1 if math.isnan(old) else int(prog.word_num_start[w])
-        edits.append(Edit(start, int(prog.word_end[w]), style.format(new)))
+        start = int(prog.word_start[w]) + 1 if math.isnan(o) else int(prog.word_num_start[w])
+        edits.append(Edit(start, int(prog.word_end[w]), style.format(v)))
     return edits
 
 
 def _append_words(prog, code, line, values, style):
-    """Consumers whose target differs from what is in force get a new word."""
+    """Consumers whose target differs from what is in force get a new word.
+
+    In force at a consumer: its own word (rewritten to the target); else the last
+    word since the previous consumer, which is rewritten to this target unless it
+    stands on an opaque line (left alone: its own value holds); else the previous
+    consumer's target.
+    """
     c_line, c_val = _consumers(line, values)
     if c_line.size == 0:
         return []
-    w_lines = np.unique(prog.word_line[prog.word_letter == code])
-    # words on or before each consumer, and on or before the previous consumer
-    upto = np.searchsorted(w_lines, c_line, side="right")
-    prev_upto = np.concatenate(([0], upto[:-1]))
-    own = np.isin(c_line, w_lines)
-    between = upto > prev_upto  # a word since the previous consumer sets our value
-    prev_val = np.concatenate(([np.nan], c_val[:-1]))
-    same = _same_formatted(c_val, prev_val, style)
-    need = ~own & ~between & ~same
+    sel = np.flatnonzero(prog.word_letter == code)
+    if sel.size == 0:  # no such word anywhere: every change of target needs one
+        prev = np.concatenate(([np.nan], c_val[:-1]))
+        need = ~_same_formatted(c_val, prev, style)
+        return [(int(li), style.format(v)) for li, v in zip(c_line[need], c_val[need])]
+    w_line = prog.word_line[sel]
+    w_opaque = prog.line_kind[w_line] != LineKind.WORDS
+    w_val = prog.word_value[sel]
+    own = np.isin(c_line, w_line[~w_opaque])
+    last = np.searchsorted(w_line, c_line, side="left") - 1  # last word before the line
+    prev_line = np.concatenate(([-1], c_line[:-1]))
+    has = last >= 0
+    between = has & (w_line[np.maximum(last, 0)] > prev_line)
+    opaque_between = between & w_opaque[np.maximum(last, 0)]
+    in_force = np.concatenate(([np.nan], c_val[:-1]))
+    in_force = np.where(opaque_between, w_val[np.maximum(last, 0)], in_force)
+    settled = own | (between & ~opaque_between)
+    need = ~settled & ~_same_formatted(c_val, in_force, style)
     return [(int(li), style.format(v)) for li, v in zip(c_line[need], c_val[need])]
 
 

@@ -1,0 +1,81 @@
+"""Shared fixtures and the hypothesis profile of the test suite.
+
+The corpus of real programs is read in place from ``../shared/corpus`` (relative to the
+project root) and never copied into the project.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, Phase, settings
+
+ROOT = Path(__file__).resolve().parents[1]
+CORPUS = (ROOT / "../shared/corpus").resolve()
+SAMPLES = ROOT / "samples"
+
+# CI and local runs give the same examples (derandomize) and slow machines no flaky
+# deadline errors; example counts stay small so the whole suite runs in about a minute.
+settings.register_profile(
+    "ncopt",
+    derandomize=True,
+    deadline=None,
+    max_examples=40,
+    print_blob=True,
+    # the explain phase traces coverage line by line: minutes on a failing numpy test
+    phases=[Phase.explicit, Phase.reuse, Phase.generate, Phase.target, Phase.shrink],
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
+                           HealthCheck.filter_too_much],
+)
+settings.load_profile(os.environ.get("NCOPT_HYPOTHESIS_PROFILE", "ncopt"))
+
+# no colour and no terminal width guesses in anything rich renders during tests
+os.environ.setdefault("NO_COLOR", "1")
+os.environ.setdefault("TERM", "dumb")
+os.environ.setdefault("COLUMNS", "100")
+
+
+def load_module(rel: str, name: str):
+    """Import a script of the project (samples/make_bowl.py) from its file path."""
+    spec = importlib.util.spec_from_file_location(name, ROOT / rel)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="session")
+def corpus_dir() -> Path:
+    if not CORPUS.is_dir():
+        pytest.fail(f"the shared corpus is missing at {CORPUS}")
+    return CORPUS
+
+
+@pytest.fixture(scope="session")
+def make_bowl():
+    """samples/make_bowl.py: the analytic bowl, its mesh and an exact ball drop-cutter."""
+    return load_module("samples/make_bowl.py", "make_bowl_for_tests")
+
+
+@pytest.fixture(scope="session")
+def bowl_stl(make_bowl, tmp_path_factory) -> Path:
+    """A 1 mm grid of the bowl surface as a binary STL (chord error < 0.04 mm)."""
+    V, F = make_bowl.bowl_mesh(1.0)
+    path = tmp_path_factory.mktemp("mesh") / "bowl_1mm.stl"
+    make_bowl.write_stl(path, V, F)
+    return path
+
+
+@pytest.fixture(scope="session")
+def bowl_index(bowl_stl):
+    from ncopt.geometry import MeshIndex, load_stl
+
+    return MeshIndex(load_stl(bowl_stl))
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(20240611)

@@ -1,0 +1,281 @@
+"""ncopt.interp: units, distance modes, arcs with exact lengths, modal F/S, unknown positions."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ncopt.errors import NcoptError
+from ncopt.interp import StartState, interpret
+from ncopt.model import Motion
+from ncopt.parse import parse_text
+
+MM = 25.4
+
+
+def run(text: str, **start):
+    return interpret(parse_text(text, "t.nc"), StartState(**start) if start else StartState())
+
+
+def ends(tp):
+    """{0-based line: end point of the move on that line} (last point of each line)."""
+    out = {}
+    for i in range(1, tp.n):
+        out[int(tp.line[i])] = tp.xyz_mm[i]
+    return out
+
+
+def line_length(tp, line: int) -> float:
+    return float(tp.seg_len_mm[tp.line == line].sum())
+
+
+# -------------------------------------------------------------------- units ----
+def test_inch_positions_and_feeds_are_millimetres_inside():
+    tp = run("G20 G90\nG0 X1 Y2 Z0.5\nG1 X2 F10\nG1 Y-1.25 F20.\n")
+    e = ends(tp)
+    assert np.allclose(e[1], [MM, 2 * MM, 0.5 * MM])
+    assert np.allclose(e[2], [2 * MM, 2 * MM, 0.5 * MM])
+    assert np.allclose(e[3], [2 * MM, -1.25 * MM, 0.5 * MM])
+    assert tp.feed_mm_min[tp.line == 2].tolist() == [10 * MM]
+    assert tp.feed_mm_min[tp.line == 3].tolist() == [20 * MM]
+    assert line_length(tp, 3) == pytest.approx(3.25 * MM)
+    assert tp.line_inch[2] and tp.line_inch[3]
+
+
+def test_units_switch_mid_program():
+    tp = run("G21 G0 X10 Y0 Z0\nG1 X20 F100\nG20\nG1 X1 F4\nG21\nG1 X5 F300\n")
+    e = ends(tp)
+    assert e[1][0] == pytest.approx(20.0)
+    assert e[3][0] == pytest.approx(MM)
+    assert e[5][0] == pytest.approx(5.0)
+    assert tp.feed_mm_min[tp.line == 3].tolist() == [pytest.approx(4 * MM)]
+    assert tp.feed_mm_min[tp.line == 5].tolist() == [300.0]
+    assert line_length(tp, 3) == pytest.approx(MM - 20, abs=1e-12)
+
+
+def test_start_state_inch():
+    tp = run("G0 X1 Y1 Z1\nG1 X2 F1\n", inch=True)
+    assert np.allclose(ends(tp)[1], [2 * MM, MM, MM])
+
+
+# --------------------------------------------------------- distance modes ----
+def test_incremental_stretches_add_up():
+    text = ("G90 G0 X10 Y10 Z5\n"
+            "G91 G1 X1 Y-2 F100\n"
+            "X1\n"
+            "Z-0.5\n"
+            "G90 G1 X0 Y0\n"
+            "G91 X-3 Y4 Z1\n"
+            "G90\n"
+            "X7\n")
+    e = ends(run(text))
+    assert np.allclose(e[1], [11, 8, 5])
+    assert np.allclose(e[2], [12, 8, 5])
+    assert np.allclose(e[3], [12, 8, 4.5])
+    assert np.allclose(e[4], [0, 0, 4.5])
+    assert np.allclose(e[5], [-3, 4, 5.5])
+    assert np.allclose(e[7], [7, 4, 5.5])
+
+
+def test_incremental_inch():
+    e = ends(run("G20 G90 G0 X0 Y0 Z0\nG91 G1 X1 F10\nX0.5 Y0.5\n"))
+    assert np.allclose(e[2], [1.5 * MM, 0.5 * MM, 0])
+
+
+def test_known_after_all_axes_absolute():
+    tp = run("G0 X0 Y0 Z0\nG1 X1 F100\nX2\n")
+    assert tp.known[tp.line == 1].all() and tp.known[tp.line == 2].all()
+    # the first move starts where the machine happened to be: not known
+    assert not tp.known[tp.line == 0].any()
+
+
+# ---------------------------------------------------------------------- arcs ----
+def arc_rows(tp, line):
+    return np.flatnonzero(tp.line == line)
+
+
+def check_circle(tp, line, centre, radius, plane_axes=(0, 1)):
+    a, b = plane_axes
+    rows = arc_rows(tp, line)
+    d = np.hypot(tp.xyz_mm[rows, a] - centre[a], tp.xyz_mm[rows, b] - centre[b])
+    assert np.allclose(d, radius, atol=1e-9)
+    # pieces are chords within the chord tolerance of the circle
+    mids = 0.5 * (tp.xyz_mm[rows] + tp.xyz_mm[rows - 1])
+    sag = radius - np.hypot(mids[:, a] - centre[a], mids[:, b] - centre[b])
+    assert np.all(sag <= StartState().chord_tol_mm + 1e-12)
+
+
+@pytest.mark.parametrize("code, sweep", [("G2", 3 * math.pi / 2), ("G3", math.pi / 2)])
+def test_quarter_and_three_quarter_arcs_ijk(code, sweep):
+    # from (10, 0) to (0, 10) around the origin: counter-clockwise (G3) is a quarter turn,
+    # clockwise (G2) goes the long way round
+    tp = run(f"G17 G90 G0 X10 Y0 Z0\n{code} X0 Y10 I-10 J0 F100\n")
+    assert line_length(tp, 1) == pytest.approx(10 * sweep, rel=1e-12)
+    assert np.allclose(tp.xyz_mm[arc_rows(tp, 1)[-1]], [0, 10, 0])
+    check_circle(tp, 1, np.zeros(3), 10.0)
+    assert set(tp.motion[arc_rows(tp, 1)].tolist()) == {Motion.ARC_CW if code == "G2"
+                                                        else Motion.ARC_CCW}
+    # the arc turns the right way: clockwise from (10, 0) first heads to negative Y
+    first = tp.xyz_mm[arc_rows(tp, 1)[0]]
+    assert (first[1] < 0) if code == "G2" else (first[1] > 0)
+
+
+@pytest.mark.parametrize("radius_word, sweep", [("R10", math.pi / 3), ("R-10", 5 * math.pi / 3)])
+@pytest.mark.parametrize("code", ["G2", "G3"])
+def test_r_format_short_and_long_arcs(code, radius_word, sweep):
+    # a 10 mm chord on a 10 mm radius: 60 deg the short way, 300 deg the long way
+    tp = run(f"G17 G0 X0 Y0 Z0\n{code} X10 Y0 {radius_word} F100\n")
+    assert line_length(tp, 1) == pytest.approx(10 * sweep, rel=1e-12)
+    rows = arc_rows(tp, 1)
+    assert np.allclose(tp.xyz_mm[rows[-1]], [10, 0, 0])
+    # centre: below the chord for a short clockwise arc, above for a short counter-clockwise
+    h = math.sqrt(100 - 25)
+    above = (code == "G3") == (radius_word == "R10")
+    centre = np.array([5.0, h if above else -h, 0.0])
+    check_circle(tp, 1, centre, 10.0)
+
+
+def test_full_circle_and_helix():
+    tp = run("G17 G0 X0 Y0 Z0\nG3 X0 Y0 Z-3 I5 J0 F100\nG2 X0 Y0 I5 J0\n")
+    assert line_length(tp, 1) == pytest.approx(math.hypot(2 * math.pi * 5, 3), rel=1e-12)
+    assert line_length(tp, 2) == pytest.approx(2 * math.pi * 5, rel=1e-12)
+    rows = arc_rows(tp, 1)
+    z = tp.xyz_mm[rows, 2]
+    assert np.all(np.diff(z) < 0) and z[-1] == pytest.approx(-3)  # a steady descent
+    check_circle(tp, 1, np.array([5.0, 0, 0]), 5.0)
+
+
+# RS-274: G2 is clockwise seen from the positive end of the axis normal to the plane;
+# the planes' (first, second) axes are (X, Y), (Z, X) and (Y, Z).  Worked by hand:
+# G17 from angle -90 to 0 deg clockwise: 270 deg; G18 (Z, X) from 180 to 90 deg: 90 deg;
+# G19 (Y, Z) from -90 to 0 deg: 270 deg.
+@pytest.mark.parametrize("plane, words, centre, axes, along, turns", [
+    ("G17", "X10 Y10 Z4 I0 J10", (0, 10, 0), (0, 1), 2, 0.75),
+    ("G18", "X10 Z10 Y4 I0 K10", (0, 0, 10), (2, 0), 1, 0.25),
+    ("G19", "Y10 Z10 X4 J0 K10", (0, 0, 10), (1, 2), 0, 0.75),
+])
+def test_helical_arcs_in_each_plane(plane, words, centre, axes, along, turns):
+    tp = run(f"G0 X0 Y0 Z0\n{plane} G2 {words} F100\n")
+    rows = arc_rows(tp, 1)
+    assert line_length(tp, 1) == pytest.approx(math.hypot(10 * 2 * math.pi * turns, 4),
+                                               rel=1e-12)
+    check_circle(tp, 1, np.array(centre, float), 10.0, axes)
+    assert tp.xyz_mm[rows[-1], along] == pytest.approx(4.0)
+    # the helix climbs evenly along the third axis
+    assert np.allclose(np.diff(tp.xyz_mm[rows, along]), 4.0 / len(rows))
+
+
+def test_g3_in_each_plane_is_the_other_way_round():
+    for plane, words in (("G17", "X10 Y10 I0 J10"), ("G18", "X10 Z10 I0 K10"),
+                         ("G19", "Y10 Z10 J0 K10")):
+        g2 = run(f"G0 X0 Y0 Z0\n{plane} G2 {words} F100\n")
+        g3 = run(f"G0 X0 Y0 Z0\n{plane} G3 {words} F100\n")
+        assert line_length(g2, 1) + line_length(g3, 1) == pytest.approx(20 * math.pi)
+
+
+def test_absolute_arc_centres_g90_1():
+    tp = run("G90.1 G17 G0 X20 Y10 Z0\nG3 X10 Y20 I10 J10 F100\n")
+    assert line_length(tp, 1) == pytest.approx(10 * math.pi / 2, rel=1e-12)
+    check_circle(tp, 1, np.array([10.0, 10.0, 0.0]), 10.0)
+
+
+def test_inch_arc_lengths():
+    tp = run("G20 G17 G0 X0 Y0 Z0\nG2 X2 Y0 R1 F10\n")
+    assert line_length(tp, 1) == pytest.approx(math.pi * MM, rel=1e-12)
+
+
+def test_incremental_arc_end():
+    tp = run("G17 G0 X10 Y0 Z0\nG91 G3 X-10 Y10 I-10 J0 F100\n")
+    assert np.allclose(tp.xyz_mm[arc_rows(tp, 1)[-1]], [0, 10, 0])
+    assert line_length(tp, 1) == pytest.approx(5 * math.pi, rel=1e-12)
+
+
+# ------------------------------------------------------------------ modal F and S ----
+def test_modal_feed_speed_and_motion():
+    text = ("G0 X0 Y0 Z5\n"
+            "S1200 M3\n"
+            "G1 Z0 F50\n"
+            "X10\n"
+            "X20 F200.\n"
+            "S2400\n"
+            "Y10\n"
+            "G0 Z5\n"
+            "X0\n"
+            "M5\n"
+            "G1 Z0\n")
+    tp = run(text)
+    by_line = {int(l): i for i, l in enumerate(tp.line)}
+    f = {l: tp.feed_mm_min[i] for l, i in by_line.items()}
+    s = {l: tp.spindle_rpm[i] for l, i in by_line.items()}
+    on = {l: bool(tp.spindle_on[i]) for l, i in by_line.items()}
+    assert [f[2], f[3], f[4], f[6], f[10]] == [50, 50, 200, 200, 200]
+    assert np.isnan(f[7]) and np.isnan(f[8])  # rapids have no feed
+    assert [s[2], s[3], s[6], s[10]] == [1200, 1200, 2400, 2400]
+    assert on[2] and on[6] and not on[10]
+    assert tp.motion[by_line[3]] == Motion.LINEAR and tp.motion[by_line[8]] == Motion.RAPID
+
+
+def test_tool_numbers():
+    tp = run("T3 M6\nG0 X0 Y0 Z0\nG1 X1 F10\nT5\nX2\nM6\nX3\n")
+    tool = {int(l): int(t) for l, t in zip(tp.line, tp.tool)}
+    assert tool[2] == 3 and tool[4] == 3 and tool[6] == 5  # T5 waits for its M6
+
+
+# -------------------------------------------------------- unknown positions ----
+@pytest.mark.parametrize("event", ["M98 P100", "G28", "G28 G91 Z0", "G30", "M6 T2",
+                                   "G92 X0", "CYCLE800()", "L100"])
+def test_positions_unknown_after_events(event):
+    text = ("G90 G0 X0 Y0 Z0\n"  # 0
+            "G1 X1 F100\n"  # 1 known
+            f"{event}\n"  # 2
+            "G90 G1 X2\n"  # 3 only X stated again
+            "Y3\n"  # 4
+            "G1 X1 Y1 Z1\n"  # 5 all axes known at the end, the start is not
+            "X2\n")  # 6 known again
+    tp = run(text)
+    known = {int(l): bool(k) for l, k in zip(tp.line, tp.known)}
+    assert known[1]
+    assert not known[3] and not known[4] and not known[5]
+    assert known[6]
+
+
+def test_g91_after_unknown_stays_unknown_until_absolute():
+    tp = run("G0 X0 Y0 Z0\nG28\nG91 G1 X1 F10\nG90 X0 Y0 Z0\nX1\n")
+    known = {int(l): bool(k) for l, k in zip(tp.line, tp.known)}
+    assert not known[2] and not known[3] and known[4]
+
+
+def test_expressions_are_evaluated_or_unknown():
+    tp = run("#1=5\n#<d>=[#1*2]\nG0 X0 Y0 Z0\nG1 X#1 Y#<d> F100\nG1 X#2\nG1 X0 Y0 Z0\nX1\n")
+    e = ends(tp)
+    assert np.allclose(e[3], [5, 10, 0])
+    known = {int(l): bool(k) for l, k in zip(tp.line, tp.known)}
+    assert known[3] and not known[4]  # #2 is never set
+    assert not known[5] and known[6]
+
+
+def test_subroutine_bodies_and_lines_after_m30_do_not_move():
+    text = ("o100 sub\nG1 X50 F10\no100 endsub\n"
+            "G0 X0 Y0 Z0\nG1 X1 F100\nM30\nG1 X99\n")
+    tp = run(text)
+    assert set(tp.line.tolist()) == {-1, 3, 4}
+
+
+# ----------------------------------------------------------------- errors ----
+@pytest.mark.parametrize("text, line", [
+    ("G0 X0 Y0 Z0\nG1 X1\n", 2),  # no feed rate
+    ("G0 X0 Y0 Z0\nG1 F100 X1\nG2 X10 Y0\n", 3),  # arc without centre
+    ("G0 X0 Y0 Z0\nF100\nG2 X10 Y0 I3 J0\n", 3),  # end not on the circle
+    ("G0 X0 Y0 Z0\nF100\nG2 X30 Y0 R5\n", 3),  # radius too small for the chord
+    ("G0 X0 Y0 Z0\nG0 G1 X1 F10\n", 2),  # two motion codes
+    ("G0 X0 Y0 Z0\n#1=[1/0]\n", 2),
+])
+def test_errors_are_located(text, line):
+    with pytest.raises(NcoptError) as info:
+        run(text)
+    err = info.value
+    assert (err.path, err.line) == ("t.nc", line)
+    assert str(err).startswith(f"t.nc:{line}:")
+    assert "; " in err.message

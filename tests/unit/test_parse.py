@@ -1,0 +1,344 @@
+"""ncopt.parse: words and their spans, opaque lines, located errors, fast path == Lark."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.lark import from_lark
+
+from ncopt.errors import NcoptError, NcParseError
+from ncopt.model import LineKind
+from ncopt.parse import parse_text, parser
+
+ROOT = Path(__file__).resolve().parents[2]
+CORPUS = (ROOT / "../shared/corpus").resolve()
+NC_SUFFIXES = {".nc", ".ngc", ".tap", ".gcode"}
+CORPUS_FILES = sorted(p for p in CORPUS.rglob("*") if p.suffix.lower() in NC_SUFFIXES
+                      and p.is_file()) if CORPUS.is_dir() else []
+
+WORD_ARRAYS = ("word_line", "word_letter", "word_value", "word_start", "word_end",
+               "word_num_start")
+LINE_ARRAYS = ("line_start", "line_kind", "line_has_expr")
+
+
+def words(prog):
+    """[(letter, value, word text, value text)] of a program, in order."""
+    return [(chr(c), float(v), prog.text[s:e], prog.text[n:e])
+            for c, v, s, e, n in zip(prog.word_letter, prog.word_value, prog.word_start,
+                                     prog.word_end, prog.word_num_start)]
+
+
+def both_paths(text: str, path: str = "<t>"):
+    """Parse with the fast path and with Lark only; both must give the same result."""
+    results = []
+    for fast in (True, False):
+        try:
+            results.append(parse_text(text, path, use_fast_path=fast))
+        except NcParseError as exc:
+            results.append(exc)
+    assert_same_parse(*results)
+    return results[0]
+
+
+def assert_same_parse(a, b) -> None:
+    if isinstance(a, NcParseError) or isinstance(b, NcParseError):
+        assert isinstance(a, NcParseError) and isinstance(b, NcParseError), (a, b)
+        assert (a.line, a.column, str(a)) == (b.line, b.column, str(b))
+        return
+    for name in WORD_ARRAYS + LINE_ARRAYS:
+        x, y = getattr(a, name), getattr(b, name)
+        assert x.shape == y.shape, name
+        assert x.dtype == y.dtype, name
+        assert np.array_equal(x, y, equal_nan=x.dtype.kind == "f"), name
+    assert a.opaque_reason == b.opaque_reason
+
+
+# ------------------------------------------------------------------ numbers and words ----
+@pytest.mark.parametrize("number, value", [
+    ("1", 1.0), ("1.", 1.0), (".5", 0.5), ("-0.25", -0.25), ("+3", 3.0), ("-.5", -0.5),
+    ("0", 0.0), ("007.250", 7.25), ("-0", 0.0), ("123456.789", 123456.789),
+])
+@pytest.mark.parametrize("letter", ["X", "x", "F"])
+def test_number_formats(letter, number, value):
+    prog = both_paths(f"{letter}{number}\n")
+    assert words(prog) == [(letter.upper(), value, f"{letter}{number}", number)]
+    assert prog.line_kind.tolist() == [LineKind.WORDS]
+    assert not prog.line_has_expr.any()
+
+
+@pytest.mark.parametrize("line, expected", [
+    ("N40G90", [("N", 40.0, "N40"), ("G", 90.0, "G90")]),
+    ("G1X1.Y2", [("G", 1.0, "G1"), ("X", 1.0, "X1."), ("Y", 2.0, "Y2")]),
+    ("X 447.29", [("X", 447.29, "X 447.29")]),
+    ("X\t-1.5 Y +2", [("X", -1.5, "X\t-1.5"), ("Y", 2.0, "Y +2")]),
+    ("  g01   x-84.512y-80.z-2.345  ", [("G", 1.0, "g01"), ("X", -84.512, "x-84.512"),
+                                        ("Y", -80.0, "y-80."), ("Z", -2.345, "z-2.345")]),
+    ("N10 O1000", [("N", 10.0, "N10"), ("O", 1000.0, "O1000")]),
+    ("O1000", [("O", 1000.0, "O1000")]),
+    ("o1000 (PROGRAM NAME)", [("O", 1000.0, "o1000")]),
+    ("/N10 G1 X1", [("N", 10.0, "N10"), ("G", 1.0, "G1"), ("X", 1.0, "X1")]),
+])
+def test_word_lines(line, expected):
+    prog = both_paths(line + "\n")
+    assert [w[:3] for w in words(prog)] == expected
+    assert prog.line_kind.tolist() == [LineKind.WORDS]
+
+
+@pytest.mark.parametrize("line, expected, kind", [
+    ("G1 X1 (comment Y5) Y2 ; S3 eol", ["G1", "X1", "Y2"], LineKind.WORDS),
+    ("G1X1(no blank)Y2", ["G1", "X1", "Y2"], LineKind.WORDS),
+    ("(only a comment with X1 inside)", [], LineKind.BLANK),
+    ("; only a comment G1 X1", [], LineKind.BLANK),
+    ("(a)(b) ;c", [], LineKind.BLANK),
+    ("   \t ", [], LineKind.BLANK),
+    ("", [], LineKind.BLANK),
+    ("G0 Z5;retract", ["G0", "Z5"], LineKind.WORDS),
+])
+def test_comments_are_not_words(line, expected, kind):
+    prog = both_paths(line + "\n")
+    assert [w[2] for w in words(prog)] == expected
+    assert prog.line_kind.tolist() == [kind]
+
+
+def test_tape_marks_and_trailer():
+    text = "%\nO1000\nG1 X1 F100\nN5040%\nG1 X999 (after the closing mark)\nnot even G-code\n"
+    prog = both_paths(text)
+    assert prog.line_kind.tolist() == [LineKind.PERCENT, LineKind.WORDS, LineKind.WORDS,
+                                       LineKind.PERCENT, LineKind.TRAILER, LineKind.TRAILER]
+    # nothing after the closing % is read: no X999 word, and garbage is no error
+    assert "X999" not in [w[2] for w in words(prog)]
+    assert [w[2] for w in words(prog)] == ["O1000", "G1", "X1", "F100", "N5040"]
+
+
+def test_single_percent_line_is_a_tape_mark():
+    prog = both_paths("%\n")
+    assert prog.line_kind.tolist() == [LineKind.PERCENT]
+    assert prog.n_words == 0
+
+
+# ---------------------------------------------------------------------- opaque lines ----
+@pytest.mark.parametrize("line, reason", [
+    ("CYCLE832(0.01,_FINISH,1)", "CYCLE832"),
+    ("DEF REAL X1", "DEF"),
+    ('T="NAME"', "T"),
+    ('T = "BALL_D16"', "T"),
+    ("R1=5", "R1"),
+    ("S1=1000", "S1"),
+    ("IF[#1GT5]GOTO10", "IF"),
+    ("WHILE[#1LT10]DO1", "WHILE"),
+    ("MSG(\"finishing X1 Y2\")", "MSG"),
+    ("$P_TOOLNO=1", "$P_TOOLNO"),
+])
+def test_opaque_lines_have_no_words(line, reason):
+    prog = both_paths(line + "\n")
+    assert prog.line_kind.tolist() == [LineKind.OPAQUE]
+    assert prog.n_words == 0  # DEF REAL X1 declares X1; it is not an X word
+    assert prog.opaque_reason == {0: reason}
+
+
+@pytest.mark.parametrize("line", ["o100 sub", "O100 SUB", "o<probe> call [1]", "o100 endsub",
+                                  "o101 if [#1 GT 2]"])
+def test_linuxcnc_o_word_control_lines_are_opaque(line):
+    prog = both_paths(line + "\n")
+    assert prog.line_kind.tolist() == [LineKind.OPAQUE]
+    assert prog.n_words == 0
+
+
+def test_words_before_an_opaque_tail_keep_their_spans():
+    text = "N10 G1 X1 R1=5 S200\n"
+    prog = both_paths(text)
+    assert prog.line_kind.tolist() == [LineKind.OPAQUE]
+    # the opaque part runs to the end of the line: S200 inside it is not a word
+    assert [w[2] for w in words(prog)] == ["N10", "G1", "X1"]
+
+
+@pytest.mark.parametrize("line", ["#1=5", "#1 = [#2 + 3]", "#<depth>=-2.5", "#[1+2]=7"])
+def test_fanuc_and_linuxcnc_assignments_parse_as_assignments(line):
+    prog = both_paths(line + "\n")
+    assert prog.line_kind.tolist() == [LineKind.WORDS]
+    assert prog.line_has_expr.tolist() == [True]
+    assert [item[0] for item in prog.line_exprs[0]] == ["assign"]
+    assert prog.n_words == 0
+
+
+@pytest.mark.parametrize("line, word, value_text", [
+    ("G1 X#1", "X#1", "#1"),
+    ("G1 X[1+2]", "X[1+2]", "[1+2]"),
+    ("G1 Z-[#<depth>]", "Z-[#<depth>]", "-[#<depth>]"),
+    ("F[#<fscale>*225]", "F[#<fscale>*225]", "[#<fscale>*225]"),
+    ("X SIN[30]", "X SIN[30]", "SIN[30]"),
+])
+def test_expression_words(line, word, value_text):
+    prog = both_paths(line + "\n")
+    w = [x for x in words(prog) if x[2] == word]
+    assert len(w) == 1, words(prog)
+    assert np.isnan(w[0][1])  # the value is only known after evaluation
+    assert prog.line_has_expr.tolist() == [True]
+    assert prog.text[int(prog.word_start[-1]) + 1:int(prog.word_end[-1])].strip() == value_text
+
+
+# -------------------------------------------------------------------------- spans ----
+def test_spans_on_a_realistic_block():
+    text = "N120 G1 X-84.512 Y-80.000 Z-2.345 F279.\r\n"
+    prog = both_paths(text)
+    for letter, _, word, value in words(prog):
+        assert word[0].upper() == letter and word.endswith(value)
+    assert [w[2] for w in words(prog)] == ["N120", "G1", "X-84.512", "Y-80.000", "Z-2.345",
+                                           "F279."]
+    assert prog.line_start.tolist() == [0, len(text)]
+
+
+def test_line_table_with_crlf_and_no_final_newline():
+    text = "G0 X1\r\nG1 Y2\r\n\r\nZ3"
+    prog = both_paths(text)
+    assert prog.line_start.tolist() == [0, 7, 14, 16, len(text)]
+    assert prog.word_line.tolist() == [0, 0, 1, 1, 3]
+    assert [prog.line_text(i) for i in range(prog.n_lines)] == ["G0 X1", "G1 Y2", "", "Z3"]
+    assert prog.newline == "\r\n"
+
+
+# ------------------------------------------------------------------ located errors ----
+@pytest.mark.parametrize("text, line, column", [
+    ("G1 X1.2.3\n", 1, 8),  # ".3" is a second number after X1.2
+    ("G0 X0\nG1 X 1 0\n", 2, 8),  # "0" is a number without a letter
+    ("G0 X0\nG1 X1\nG1 X1 (open\n", 3, 7),  # the comment never closes
+    ("%\nO1\n(ok)\nG1 X1 (a(b)\n", 4, 7),  # nested parentheses
+    ("G1 X1\r\nG1 X1 Y2 *3\r\n", 2, 10),  # "*" cannot start a word
+    ("\tG1 X1 Y\n", 1, 8),  # a letter without a number; a tab is one column
+])
+def test_malformed_lines_raise_located_errors(text, line, column):
+    with pytest.raises(NcParseError) as info:
+        parse_text(text, "part.nc")
+    err = info.value
+    assert isinstance(err, NcoptError)
+    assert (err.path, err.line, err.column) == ("part.nc", line, column)
+    src = text.splitlines()[line - 1]
+    assert err.context == f"    {src.expandtabs(1)}\n    {' ' * (column - 1)}^"
+    first = str(err).splitlines()[0]
+    assert first.startswith(f"part.nc:{line}:{column}: ")
+    assert "; " in first  # what is wrong; what to do
+    assert str(err).splitlines()[1:] == err.context.splitlines()
+    # the Lark-only path reports the same place
+    with pytest.raises(NcParseError) as again:
+        parse_text(text, "part.nc", use_fast_path=False)
+    assert (again.value.line, again.value.column) == (line, column)
+
+
+def test_error_line_counts_every_fast_line_before_it():
+    body = "".join(f"N{10 * i} G1 X{i}.5 Y-{i}\n" for i in range(500))
+    with pytest.raises(NcParseError) as info:
+        parse_text(body + "G1 X1 Y2 Y\n" + body, "big.nc")
+    assert info.value.line == 501
+    assert info.value.column == 10
+
+
+def test_caret_points_at_the_reported_column():
+    text = "G1 X1\nN20 G1 X5 ?Y3\n"
+    with pytest.raises(NcParseError) as info:
+        parse_text(text)
+    err = info.value
+    shown, caret = err.context.splitlines()
+    assert shown[caret.index("^")] == "?"
+    assert err.column == text.splitlines()[1].index("?") + 1
+
+
+# --------------------------------------------------- fast path == Lark: the corpus ----
+@lru_cache(maxsize=None)
+def _corpus_text(path: Path) -> str:
+    return path.read_bytes().decode("latin-1")
+
+
+def test_corpus_is_there():
+    assert len(CORPUS_FILES) >= 100, CORPUS
+
+
+@pytest.mark.parametrize("path", CORPUS_FILES, ids=lambda p: str(p.relative_to(CORPUS)))
+def test_fast_path_equals_lark_on_corpus(path):
+    both_paths(_corpus_text(path), str(path))
+
+
+def test_fast_path_takes_the_plain_blocks_of_a_real_program():
+    """The equality above is only worth something if the fast path does the work."""
+    text = _corpus_text(CORPUS / "camotics" / "flower_mold.nc")
+    calls = []
+    parse_text(text, progress=calls.append)  # progress is called per Lark line
+    n_lines = text.count("\n")
+    assert len(calls) < 0.1 * n_lines
+
+
+# ------------------------------------------- fast path == Lark: generated lines ----
+LATIN1_LINE = st.characters(codec="latin-1", exclude_characters="\r\n")
+
+
+@settings(max_examples=150)
+@given(st.lists(from_lark(parser(), start="line", alphabet=LATIN1_LINE), min_size=1,
+                max_size=4),
+       st.sampled_from(["\n", "\r\n"]))
+def test_fast_path_equals_lark_on_grammar_lines(lines, newline):
+    text = newline.join(lines) + newline
+    result = both_paths(text)
+    # every line the grammar generates is valid
+    assert not isinstance(result, NcParseError), (text, result)
+
+
+NUMBER = st.one_of(
+    st.integers(-99999, 99999).map(str),
+    st.decimals(-10000, 10000, places=4, allow_nan=False, allow_infinity=False).map(str),
+    st.from_regex(r"[+-]?(?:[0-9]{1,6}\.?[0-9]{0,5}|\.[0-9]{1,5})", fullmatch=True),
+)
+BLANKS = st.sampled_from(["", "", " ", "  ", "\t", " \t"])
+
+
+@st.composite
+def word_lines(draw):
+    """A plain word block and the exact text of each of its words."""
+    parts, expected, pos = [draw(BLANKS)], [], 0
+    pos = len(parts[0])
+    for _ in range(draw(st.integers(1, 8))):
+        letter = draw(st.sampled_from("GXYZFSNMIJKTgxyzfs"))
+        inner = draw(st.sampled_from(["", "", " ", "\t"]))
+        number = draw(NUMBER)
+        word = f"{letter}{inner}{number}"
+        expected.append((letter.upper(), float(number), word, number, pos))
+        pos += len(word)
+        gap = draw(BLANKS)
+        parts += [word, gap]
+        pos += len(gap)
+    return "".join(parts), expected
+
+
+@settings(max_examples=150)
+@given(st.lists(word_lines(), min_size=1, max_size=5), st.sampled_from(["\n", "\r\n"]),
+       st.booleans())
+def test_generated_word_lines_spans_and_values(lines, newline, final_newline):
+    text = newline.join(line for line, _ in lines) + (newline if final_newline else "")
+    prog = both_paths(text)
+    assert not isinstance(prog, NcParseError)
+    offset, got = 0, words(prog)
+    expected = []
+    for i, (line, exp) in enumerate(lines):
+        for letter, value, word, number, pos in exp:
+            expected.append((letter, value, word, number, offset + pos, i))
+        offset += len(line) + len(newline)
+    assert len(got) == len(expected)
+    for (letter, value, word, number, start, line_no), g, s, ln in zip(
+            expected, got, prog.word_start.tolist(), prog.word_line.tolist()):
+        assert g[0] == letter and g[2] == word and g[3] == number
+        assert g[1] == pytest.approx(value, rel=1e-15, abs=0)
+        assert s == start and ln == line_no
+
+
+NEAR_MISS = st.text(st.sampled_from("GXSFgx0123456789.+- \t#[]=()%;/O\x00\x7f\xa0"),
+                    max_size=24)
+
+
+@settings(max_examples=300)
+@given(st.lists(NEAR_MISS, min_size=1, max_size=4))
+def test_fast_path_equals_lark_on_near_miss_lines(lines):
+    """Lines that are almost word blocks: the fast path must refuse exactly what Lark refuses."""
+    both_paths("\n".join(lines) + "\n")

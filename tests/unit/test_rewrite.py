@@ -1,0 +1,261 @@
+"""ncopt.rewrite (and the rewrite entry point): splicing, number styles, separators, CRLF."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from ncopt.api import Job, rewrite_text
+from ncopt.errors import VerificationError
+from ncopt.interp import interpret
+from ncopt.model import Cutter, CuttingData, Edit, LineKind, Machine
+from ncopt.parse import parse_text
+from ncopt.rewrite import (F_CODE, S_CODE, Targets, WordStyle, apply_edits, detect_style,
+                           masked, plan_edits)
+
+
+def edit(text, lines, s, f):
+    prog = parse_text(text)
+    targets = Targets(np.array(lines), np.array(s, float), np.array(f, float))
+    edits = plan_edits(prog, targets, detect_style(prog, S_CODE),
+                       detect_style(prog, F_CODE, default_decimals=1))
+    return apply_edits(text, edits)
+
+
+# ------------------------------------------------------------------ number styles ----
+@pytest.mark.parametrize("style, value, text", [
+    (WordStyle(0, False), 3002.4, "3002"),
+    (WordStyle(0, True), 3002.4, "3002."),
+    (WordStyle(1, False), 3002.44, "3002.4"),
+    (WordStyle(2, False), 12.5, "12.50"),
+    (WordStyle(3, False), 0.1, "0.100"),
+])
+def test_word_style_format(style, value, text):
+    assert style.format(value) == text
+
+
+@pytest.mark.parametrize("f_word, decimals, trailing", [
+    ("F279", 0, False), ("F279.", 0, True), ("F279.0", 1, False), ("F279.00", 2, False),
+    ("F.5", 1, False),
+])
+def test_detect_style_of_feed_words(f_word, decimals, trailing):
+    prog = parse_text(f"G1 X1 {f_word}\nG1 X2 {f_word}\nX3 F100.000\n")
+    style = detect_style(prog, F_CODE)
+    assert (style.decimals, style.trailing_point) == (decimals, trailing)  # the majority
+
+
+@pytest.mark.parametrize("text, sep", [
+    ("N10 G1 X1 Y2\nN20 X3\n", " "), ("N10G1X1.Y2.\nN20X3.\n", ""),
+    ("G1\tX1\tY2\n", " "), ("X1\nY2\n", " "),  # one word per line: blanks by default
+])
+def test_separator_detection(text, sep):
+    assert detect_style(parse_text(text), F_CODE).separator == sep
+
+
+# ---------------------------------------------------------- edits from targets ----
+def test_replace_in_place_and_append_worked_by_hand():
+    text = "S1393 M3\nG1 X1 F279\nX2\nX3\nX4\n"
+    out = edit(text, [1, 2, 3, 4], [1500, 1500, 1600, 1600], [300, 310, 310, 320])
+    # the spindle-start S takes the first block's speed; later changes are appended
+    assert out == "S1500 M3\nG1 X1 F300\nX2 F310\nX3 S1600\nX4 F320\n"
+
+
+def test_appended_words_s_before_f():
+    out = edit("S100 M3\nG1 X1 F50\nX2\n", [1, 2], [100, 200], [50, 60])
+    assert out == "S100 M3\nG1 X1 F50\nX2 S200 F60\n"
+
+
+def test_program_writing_f_before_s_gets_f_before_s():
+    out = edit("G1 X0 F50 S100 M3\nG1 X1 F50 S100\nX2\n", [0, 1, 2], [100, 100, 200],
+               [50, 50, 60])
+    assert out.splitlines()[2] == "X2 F60 S200"
+
+
+@pytest.mark.parametrize("f_word, appended", [
+    ("F279", "F310"), ("F279.", "F310."), ("F279.0", "F310.0"), ("F279.00", "F310.00"),
+])
+def test_number_style_is_kept(f_word, appended):
+    out = edit(f"S1393 M3\nG1 X1 {f_word}\nX2\n", [1, 2], [1393, 1393], [279, 310])
+    assert out == f"S1393 M3\nG1 X1 {f_word}\nX2 {appended}\n"
+
+
+def test_words_without_spaces_get_words_without_spaces():
+    text = "N10S1393M3\nN20G1X1.F279.\nN30X2.\nN40X3.\n"
+    out = edit(text, [1, 2, 3], [1393, 1500, 1500], [279, 300, 300])
+    assert out == "N10S1393M3\nN20G1X1.F279.\nN30X2.S1500F300.\nN40X3.\n"
+
+
+def test_crlf_line_endings_are_kept():
+    text = "S1393 M3\r\nG1 X1 F279\r\nX2\r\nX3\r\n"
+    out = edit(text, [1, 2, 3], [1393, 1500, 1600], [279, 300, 320])
+    assert out == "S1393 M3\r\nG1 X1 F279\r\nX2 S1500 F300\r\nX3 S1600 F320\r\n"
+
+
+def test_append_goes_before_a_comment():
+    out = edit("S1 M3\nG1 X1 F1 ; first\nX2 (second)\n", [1, 2], [1, 2], [1, 3])
+    assert out == "S1 M3\nG1 X1 F1 ; first\nX2 S2 F3 (second)\n"
+
+
+def test_no_edit_when_the_value_is_written_the_same():
+    text = "S1393 M3\nG1 X1 F279.\nX2\n"
+    assert edit(text, [1, 2], [1393.2, 1393.4], [279.0, 279.0]) == text
+
+
+def test_expression_words_are_replaced_whole():
+    text = "#1=700\nS[#1*2] M3\nG1 X1 F#1\nX2\n"
+    out = edit(text, [2, 3], [1500, 1500], [300, 300])
+    # no number F word to copy the style from: one decimal
+    assert out.splitlines()[1:3] == ["S1500 M3", "G1 X1 F300.0"]
+    parse_text(out)
+
+
+def test_opaque_lines_are_never_edited():
+    """The grammar's promise: an opaque line is kept byte for byte."""
+    text = 'S1393 M3 T="BALL_D16"\nG1 X1 F279\nX2\n'
+    out = edit(text, [1, 2], [1500, 1500], [279, 279])
+    assert out.splitlines()[0] == 'S1393 M3 T="BALL_D16"'
+    # the new speed is then set on the first block that needs it
+    prog = parse_text(out)
+    s = prog.word_value[prog.word_letter == S_CODE]
+    assert s[-1] == 1500
+
+
+# ---------------------------------------------------------------- splicing ----
+def test_apply_edits_identity_and_order():
+    text = "G1 X1 F100\n"
+    assert apply_edits(text, []) == text
+    ins = [Edit(10, 10, " S1"), Edit(10, 10, " F2"), Edit(7, 10, "200")]
+    assert apply_edits(text, ins) == "G1 X1 F200 S1 F2\n"
+
+
+def test_overlapping_edits_raise():
+    with pytest.raises(VerificationError):
+        apply_edits("G1 X1 F100\n", [Edit(6, 10, "F1"), Edit(7, 8, "2")])
+
+
+def test_masked_removes_s_and_f_words_with_their_blanks():
+    prog = parse_text("G1 X1 S100\tF200 Y2\nN2S5F6X1\n")
+    assert masked(prog) == "G1 X1 Y2\nN2X1\n"
+
+
+# ------------------------------------------------- the rewrite, end to end ----
+JOB = Job(cutter=Cutter(16.0, 2), machine=Machine(accel_rad_s2=227.0, max_rpm=15000.0),
+          cutting=CuttingData(vc_m_min=70.0, fz_mm=0.1), stamp=False)
+
+
+def wall_program(mb, *, sep=" ", f_word="F279", newline="\n", inch=False, tape=False):
+    """Two passes up the steep wall of the sample bowl (the requirement changes a lot)."""
+    scale = 1 / 25.4 if inch else 1.0
+    fmt = (lambda v: f"{v * scale:.4f}") if inch else (lambda v: f"{v:.3f}")
+    lines = (["%", "O1000"] if tape else []) + [
+        "(wall finish)", ("G20" if inch else "G21") + sep + "G90", "T1" + sep + "M6",
+        "S1393" + sep + "M3", "G0" + sep + f"X{fmt(60)}{sep}Y{fmt(45)}{sep}Z{fmt(10)}"]
+    first = True
+    for i, y in enumerate((45.0, 46.5)):
+        xs = np.linspace(60.0, 40.0, 25) if i % 2 else np.linspace(40.0, 60.0, 25)
+        zs = mb.drop_ball_tip_z_mm(xs, np.full_like(xs, y), 8.0)
+        for x, z in zip(xs.tolist(), zs.tolist()):
+            words = [f"X{fmt(x)}", f"Y{fmt(y)}", f"Z{fmt(z)}"]
+            if first:
+                words = ["G1"] + words + [f_word]
+                first = False
+            lines.append(sep.join(words))
+    lines += ["G0" + sep + f"Z{fmt(10)}", "M5", "M30"] + (["%"] if tape else [])
+    return newline.join(lines) + newline
+
+
+@pytest.fixture(scope="module")
+def mb(make_bowl):
+    return make_bowl
+
+
+def _checked(text, index, job=JOB):
+    out = rewrite_text(text, job, "wall.nc", index).text
+    a, b = parse_text(text), parse_text(out)
+    assert masked(b) == masked(a)
+    assert np.array_equal(interpret(a).xyz_mm, interpret(b).xyz_mm)
+    return out, b
+
+
+def _f_words(prog):
+    sel = prog.word_letter == F_CODE
+    return [prog.text[n:e] for n, e in zip(prog.word_num_start[sel], prog.word_end[sel])]
+
+
+@pytest.mark.parametrize("f_word, decimals, point", [
+    ("F279", 0, False), ("F279.", 0, True), ("F279.0", 1, False)])
+def test_rewrite_keeps_the_feed_style(mb, bowl_index, f_word, decimals, point):
+    out, prog = _checked(wall_program(mb, f_word=f_word), bowl_index)
+    fs = _f_words(prog)
+    assert len(fs) > 5  # the wall changes the feed often
+    for f in fs:
+        assert f.endswith(".") == point and len(f.partition(".")[2]) == decimals, f
+
+
+def test_rewrite_sets_s_on_the_spindle_start_line(mb, bowl_index):
+    text = wall_program(mb)
+    out, prog = _checked(text, bowl_index)
+    start = [i for i in range(prog.n_lines) if "M3" in prog.line_text(i)][0]
+    s_words = prog.word_value[(prog.word_letter == S_CODE) & (prog.word_line == start)]
+    assert s_words.size == 1
+    assert prog.line_text(start) == f"S{int(s_words[0])} M3"
+    # S is on the start line in force when the first cut begins: no S word before it
+    first_cut = [i for i in range(prog.n_lines) if prog.line_text(i).startswith("G1")][0]
+    between = (prog.word_letter == S_CODE) & (prog.word_line > start) & \
+        (prog.word_line < first_cut)
+    assert not between.any()
+
+
+def test_rewrite_without_spaces_appends_without_spaces(mb, bowl_index):
+    out, prog = _checked(wall_program(mb, sep=""), bowl_index)
+    body = [prog.line_text(i) for i in range(prog.n_lines) if prog.line_kind[i] == LineKind.WORDS]
+    assert not any(" " in line for line in body)
+    assert any("S" in line[1:] and line.startswith("X") for line in body)
+
+
+def test_rewrite_keeps_crlf(mb, bowl_index):
+    text = wall_program(mb, newline="\r\n")
+    out, prog = _checked(text, bowl_index)
+    assert out.count("\r\n") == out.count("\n") == text.count("\n")
+    assert out != text
+
+
+def test_inch_program_gets_inch_feeds(mb, bowl_index):
+    """Positions in inches on a mm mesh: F words are inch/min with two decimals."""
+    text = wall_program(mb, inch=True, f_word="F11.0")
+    out, prog = _checked(text, bowl_index)
+    fs = [float(f) for f in _f_words(prog)]
+    assert len(fs) > 5
+    assert all(len(f.partition(".")[2]) == 2 for f in _f_words(prog))
+    # F = fz z S is at most 0.1 mm * 2 * 15000 RPM = 3000 mm/min = 118.1 inch/min
+    assert max(fs) <= 3000 / 25.4 * (1 + JOB.options.fz_tolerance)
+    tp = interpret(prog)
+    assert np.nanmax(tp.feed_mm_min) <= 3000 * (1 + JOB.options.fz_tolerance)
+
+
+def test_rewrite_twice_is_stable(mb, bowl_index):
+    out, _ = _checked(wall_program(mb, tape=True), bowl_index)
+    assert rewrite_text(out, JOB, "wall.nc", bowl_index).text == out
+
+
+# ------------------------------------------------------------------ the stamp ----
+@pytest.mark.parametrize("tape, comment", [(True, "("), (False, "(")])
+def test_stamp_is_one_comment_line_after_the_tape_header(mb, bowl_index, tape, comment):
+    text = wall_program(mb, tape=tape)
+    plain = rewrite_text(text, JOB, "wall.nc", bowl_index).text
+    stamped = rewrite_text(text, replace(JOB, stamp=True), "wall.nc", bowl_index).text
+    a, b = plain.splitlines(keepends=True), stamped.splitlines(keepends=True)
+    at = 2 if tape else 0
+    assert b[:at] + b[at + 1:] == a
+    assert b[at].startswith(comment + "ncopt ") and "vc=70" in b[at]
+    assert parse_text(b[at]).line_kind.tolist() == [LineKind.BLANK]
+    again = rewrite_text(stamped, replace(JOB, stamp=True), "wall.nc", bowl_index).text
+    assert again == stamped
+
+
+def test_stamp_uses_semicolons_in_a_semicolon_program(mb, bowl_index):
+    text = wall_program(mb).replace("(wall finish)", "; wall finish")
+    stamped = rewrite_text(text, replace(JOB, stamp=True), "wall.nc", bowl_index).text
+    assert stamped.startswith("; ncopt ") or stamped.startswith(";ncopt ")
