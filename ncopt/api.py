@@ -25,7 +25,7 @@ from .interp import interpret
 from .model import Cutter, CuttingData, Machine, Motion, PlanOptions, Program, Toolpath
 from .parse import parse_text
 from .pathnormals import NO_CROSS, ONE_SIDED
-from .stamp import as_stamped, read_stamps, stamp_edit, without_stamps
+from .stamp import as_stamped, read_stamps, stamp_edit
 from .rewrite import F_CODE, S_CODE, Targets, apply_edits, detect_style, masked, plan_edits
 from .tooltable import BALL, BULL, cutter_for, tool_table
 from .tools import required_rpm
@@ -292,27 +292,35 @@ def _targets(tp, idx, plans, f_style) -> Targets:
 
 
 def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_style) -> None:
-    """The checks run after every rewrite; raises VerificationError, writes nothing."""
+    """The checks run after every rewrite; raises VerificationError, writes nothing.
+
+    One parse of the output serves all three: the stamp lines are whole comment lines
+    at the top, so masking keeps the line structure and every target line moves by the
+    same count.
+    """
     out_prog = parse_text(out, prog.path)
-    if _masked_without_stamps(out_prog) != _masked_without_stamps(prog):
+    in_stamps = sorted(st.line for st in read_stamps(prog).values())
+    out_stamps = sorted(st.line for st in read_stamps(out_prog).values())
+    if _masked_lines(out_prog, out_stamps) != _masked_lines(prog, in_stamps):
         raise VerificationError("the rewrite changed more than S and F words; nothing written",
                                 prog.path)
     out_tp = interpret(out_prog)
     if out_tp.n != tp.n or not np.array_equal(out_tp.xyz_mm, tp.xyz_mm):
         raise VerificationError("the rewrite changed the toolpath; nothing written", prog.path)
-    # the stamp lines aside, the output must need no further edit for the same targets
-    stamp_lines = np.array(sorted(st.line for st in read_stamps(prog).values()), dtype=np.int64)
-    shifted = replace(targets, line=targets.line - np.searchsorted(stamp_lines, targets.line))
-    clean = parse_text(without_stamps(out_prog), prog.path)
-    again = plan_edits(clean, shifted, s_style, f_style)
+    shifted = replace(targets, line=targets.line + (len(out_stamps) - len(in_stamps)))
+    again = plan_edits(out_prog, shifted, s_style, f_style)
     if again:
-        line = int(np.searchsorted(clean.line_start, again[0].start, side="right"))
+        line = int(np.searchsorted(out_prog.line_start, again[0].start, side="right"))
         raise VerificationError("rewriting the result again would change it; nothing written",
                                 prog.path, line)
 
 
-def _masked_without_stamps(prog: Program) -> str:
-    return masked(parse_text(without_stamps(prog), prog.path)) if read_stamps(prog) else masked(prog)
+def _masked_lines(prog: Program, drop: list) -> list:
+    """The program with S/F words masked, as lines, without the given (stamp) lines."""
+    lines = masked(prog).splitlines(keepends=True)
+    for i in reversed(drop):
+        del lines[i]
+    return lines
 
 
 def _summary(prog, tp, idx, plans, skipped, edits, mesh_index) -> Summary:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import IntEnum
+from typing import NamedTuple
 
 import numpy as np
 
@@ -302,9 +303,8 @@ class Plan:
     planned: np.ndarray
 
 
-@dataclass(frozen=True)
-class Edit:
-    """Replace ``text[start:end]`` by ``text``."""
+class Edit(NamedTuple):
+    """Replace ``text[start:end]`` by ``text`` (a named tuple: a rewrite makes ~1M)."""
 
     start: int
     end: int

@@ -110,7 +110,7 @@ def parse_text(text: str, path: str = "<input>", *, use_fast_path: bool = True,
         return _empty(path, text)
     line_start, content_end = _split_lines(raw)
     n_lines = line_start.shape[0] - 1
-    fast, blank, words = _fast_path(raw, line_start, content_end)
+    fast, blank, words = _fast_path_chunked(raw, line_start, content_end)
     trailer = np.arange(n_lines) >= _trailer_start(text, line_start)
     if not use_fast_path:  # every line through Lark: the reference the fast path is tested against
         fast = np.zeros(n_lines, dtype=bool)
@@ -166,6 +166,27 @@ def _split_lines(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     cr = (ends > starts[:-1]) & (raw[np.maximum(ends - 1, 0)] == 13) & drop
     ends[cr] -= 1
     return starts, ends
+
+
+FAST_CHUNK_LINES = 65536  # per-byte work arrays stay small (tens of MB, not GB)
+
+
+def _fast_path_chunked(raw, line_start, content_end):
+    """:func:`_fast_path` over chunks of lines, results joined (same words, less memory)."""
+    n_lines = line_start.shape[0] - 1
+    if n_lines <= FAST_CHUNK_LINES:
+        return _fast_path(raw, line_start, content_end)
+    fast, blank, parts = [], [], []
+    for a in range(0, n_lines, FAST_CHUNK_LINES):
+        b = min(a + FAST_CHUNK_LINES, n_lines)
+        base = int(line_start[a])
+        f, bl, w = _fast_path(raw[base:int(line_start[b])], line_start[a:b + 1] - base,
+                              content_end[a:b] - base)
+        fast.append(f)
+        blank.append(bl)
+        parts.append((w[0] + a, w[1], w[2], w[3] + base, w[4] + base, w[5] + base))
+    words = tuple(np.concatenate([p[k] for p in parts]) for k in range(6))
+    return np.concatenate(fast), np.concatenate(blank), words
 
 
 def _fast_path(raw, line_start, content_end):

@@ -24,9 +24,8 @@ from .errors import PlanningError
 from .model import CuttingData, Machine, PlanOptions
 
 MAX_ITERATIONS = 200
-# Running sums over a million blocks carry ~1e-4 RPM^2 of rounding: profiles that agree
-# to a millionth of an RPM are the same (a stricter test never converges there).
-CONVERGED_RPM = 1e-6
+# Profiles that agree to a ten-thousandth of an RPM are the same (S words are integers).
+CONVERGED_RPM = 1e-4
 # The profile keeps this share of the spindle's S^2 rate and of the fz band in
 # reserve, so that integer S words (rounded toward the limits) can always follow
 # it, even through a long deceleration at the full rate.
@@ -204,15 +203,14 @@ def _two_way_max_forward(x: np.ndarray, inc: np.ndarray) -> np.ndarray:
 
 
 def _two_way_min_forward(x: np.ndarray, inc: np.ndarray) -> np.ndarray:
-    n = x.shape[0]
-    if n == 0:
-        return x.copy()
-    brk = ~np.isfinite(inc)
-    brk[0] = True
-    seg = np.cumsum(brk) - 1
-    cum = np.cumsum(np.where(brk, 0.0, inc))
-    cum -= cum[np.flatnonzero(brk)][seg]
-    return cum + _segment_running_min(x - cum, seg, reverse=False)
+    """The largest y <= x with y_b <= y_(b-1) + inc_b (the forward pass alone)."""
+    out = x.copy()
+    chains = _chains(inc)
+    if chains is None:
+        return out
+    idx, seg, cum = chains
+    out[idx] = cum + _segment_running_min(x[idx] - cum, seg, reverse=False)
+    return out
 
 
 def _lowest_cut_cap(cap: np.ndarray, blocks: Blocks) -> float | None:
@@ -259,24 +257,44 @@ def forward_clip(req: np.ndarray, inc: np.ndarray) -> np.ndarray:
     return x
 
 
+def _chains(inc: np.ndarray):
+    """Blocks linked to a neighbour (inc_b finite links b-1 and b), as
+    (indices, chain id, cumulative inc within the chain); None when no block is.
+
+    Blocks alone in their chain stay out, so that the per-chain offsets of the
+    accumulations stay small (a million one-block chains cost precision)."""
+    n = inc.shape[0]
+    brk = ~np.isfinite(inc)
+    if n:
+        brk[0] = True
+    chained = ~brk | np.concatenate((~brk[1:], [False]))
+    if not chained.any():
+        return None
+    idx = np.flatnonzero(chained)
+    link = ~brk[idx]
+    start = ~link
+    seg = np.cumsum(start) - 1
+    cum = np.cumsum(np.where(link, inc[idx], 0.0))
+    cum -= cum[np.flatnonzero(start)][seg]
+    return idx, seg, cum
+
+
 def _two_way_min(x: np.ndarray, inc: np.ndarray) -> np.ndarray:
     """The largest y <= x with y_b <= y_(b-1) + inc_b and y_b <= y_(b+1) + inc_(b+1).
 
     Both passes are running minima: forward ``y_b = C_b + min_(j<=b)(x_j - C_j)``,
     backward ``y_b = -C_b + min_(j>=b)(y_j + C_j)`` with C the cumulative sum of
     inc.  An infinite inc_b removes the constraint between b-1 and b: the sums
-    restart there (done with per-segment offsets, so still one accumulate).
+    restart there.
     """
-    n = x.shape[0]
-    if n == 0:
-        return x.copy()
-    brk = ~np.isfinite(inc)
-    brk[0] = True
-    seg = np.cumsum(brk) - 1
-    cum = np.cumsum(np.where(brk, 0.0, inc))
-    cum -= cum[np.flatnonzero(brk)][seg]
-    fwd = cum + _segment_running_min(x - cum, seg, reverse=False)
-    return -cum + _segment_running_min(fwd + cum, seg, reverse=True)
+    out = x.copy()
+    chains = _chains(inc)
+    if chains is None:
+        return out
+    idx, seg, cum = chains
+    fwd = cum + _segment_running_min(x[idx] - cum, seg, reverse=False)
+    out[idx] = -cum + _segment_running_min(fwd + cum, seg, reverse=True)
+    return out
 
 
 def _segment_running_min(v: np.ndarray, seg: np.ndarray, reverse: bool) -> np.ndarray:

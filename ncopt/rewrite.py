@@ -30,10 +30,15 @@ class WordStyle:
     s_before_f: bool = True
 
     def format(self, value: float) -> str:
+        return self.format_all([value])[0]
+
+    def format_all(self, values) -> list[str]:
+        """Many numbers at once (a rewrite writes ~1M)."""
         if self.decimals == 0:
-            text = str(int(round(value)))
-            return text + "." if self.trailing_point else text
-        return f"{value:.{self.decimals}f}"
+            dot = "." if self.trailing_point else ""
+            return [f"{v}{dot}" for v in np.round(np.asarray(values, float)).astype(np.int64).tolist()]
+        spec = f".{self.decimals}f"
+        return [format(v, spec) for v in np.asarray(values, float).tolist()]
 
     def quantize_down(self, value: float) -> float:
         """Largest representable value <= value (so fz never exceeds its target)."""
@@ -104,12 +109,11 @@ def plan_edits(prog: Program, targets: Targets, s_style: WordStyle,
                f_style: WordStyle) -> list[Edit]:
     """Edits that make S and F in force equal the targets, word by word."""
     edits = []
-    appended: dict[int, list] = {}
+    appended = {}
     for code, values, style in ((S_CODE, targets.s_value, s_style),
                                 (F_CODE, targets.f_value, f_style)):
         edits += _replace_words(prog, code, targets.line, values, style)
-        for line, text in _append_words(prog, code, targets.line, values, style):
-            appended.setdefault(line, []).append((code, text))
+        appended[code] = _append_words(prog, code, targets.line, values, style)
     edits += _insertions(prog, appended, s_style)
     return edits
 
@@ -131,12 +135,10 @@ def _replace_words(prog, code, line, values, style) -> list[Edit]:
     words, new = words[ok], c_val[nxt[ok]]
     old = prog.word_value[words]
     change = ~_same_formatted(old, new, style)  # NaN (an expression) always changes
-    edits = []
-    for w, v, o in zip(words[change].tolist(), new[change].tolist(), old[change].tolist()):
-        # an expression value ([#<fscale>*225], #1) is replaced whole, after the letter
-        start = int(prog.word_start[w]) + 1 if math.isnan(o) else int(prog.word_num_start[w])
-        edits.append(Edit(start, int(prog.word_end[w]), style.format(v)))
-    return edits
+    words, new, old = words[change], new[change], old[change]
+    # an expression value ([#<fscale>*225], #1) is replaced whole, after the letter
+    start = np.where(np.isnan(old), prog.word_start[words] + 1, prog.word_num_start[words])
+    return list(map(Edit, start.tolist(), prog.word_end[words].tolist(), style.format_all(new)))
 
 
 def _append_words(prog, code, line, values, style):
@@ -149,12 +151,12 @@ def _append_words(prog, code, line, values, style):
     """
     c_line, c_val = _consumers(line, values)
     if c_line.size == 0:
-        return []
+        return c_line, []
     sel = np.flatnonzero(prog.word_letter == code)
     if sel.size == 0:  # no such word anywhere: every change of target needs one
         prev = np.concatenate(([np.nan], c_val[:-1]))
         need = ~_same_formatted(c_val, prev, style)
-        return [(int(li), style.format(v)) for li, v in zip(c_line[need], c_val[need])]
+        return c_line[need], style.format_all(c_val[need])
     w_line = prog.word_line[sel]
     w_opaque = prog.line_kind[w_line] != LineKind.WORDS
     w_val = prog.word_value[sel]
@@ -168,7 +170,7 @@ def _append_words(prog, code, line, values, style):
     in_force = np.where(opaque_between, w_val[np.maximum(last, 0)], in_force)
     settled = own | (between & ~opaque_between)
     need = ~settled & ~_same_formatted(c_val, in_force, style)
-    return [(int(li), style.format(v)) for li, v in zip(c_line[need], c_val[need])]
+    return c_line[need], style.format_all(c_val[need])
 
 
 def _same_formatted(a: np.ndarray, b: np.ndarray, style: WordStyle) -> np.ndarray:
@@ -178,20 +180,27 @@ def _same_formatted(a: np.ndarray, b: np.ndarray, style: WordStyle) -> np.ndarra
         return (np.round(a * scale) == np.round(b * scale)) & ~np.isnan(a) & ~np.isnan(b)
 
 
-def _insertions(prog, appended, style) -> list[Edit]:
-    """New words go after the last word of their line, S before F unless the post differs."""
-    if not appended:
+def _insertions(prog, appended: dict, style) -> list[Edit]:
+    """New words go after the last word of their line, S before F unless the post differs.
+
+    ``appended`` maps S_CODE / F_CODE to (lines, formatted values)."""
+    (s_lines, s_text), (f_lines, f_text) = appended[S_CODE], appended[F_CODE]
+    lines = np.union1d(s_lines, f_lines).astype(np.int64)
+    if lines.size == 0:
         return []
-    lines = np.array(sorted(appended))
+    sep = style.separator
+    s_part, f_part = [""] * lines.size, [""] * lines.size
+    for pos, t in zip(np.searchsorted(lines, s_lines).tolist(), s_text):
+        s_part[pos] = f"{sep}S{t}"
+    for pos, t in zip(np.searchsorted(lines, f_lines).tolist(), f_text):
+        f_part[pos] = f"{sep}F{t}"
+    texts = [a + b for a, b in zip(s_part, f_part)] if style.s_before_f else \
+        [b + a for a, b in zip(s_part, f_part)]
     last_word = np.searchsorted(prog.word_line, lines, side="right") - 1
-    edits = []
-    for li, w in zip(lines.tolist(), last_word.tolist()):
-        words = sorted(appended[li], key=lambda cw: (cw[0] != S_CODE) == style.s_before_f)
-        text = "".join(f"{style.separator}{chr(c)}{t}" for c, t in words)
-        at = int(prog.word_end[w]) if w >= 0 and prog.word_line[w] == li \
-            else int(prog.line_start[li])
-        edits.append(Edit(at, at, text))
-    return edits
+    on_line = (last_word >= 0) & (prog.word_line[np.maximum(last_word, 0)] == lines)
+    at = np.where(on_line, prog.word_end[np.maximum(last_word, 0)], prog.line_start[lines])
+    at = at.tolist()
+    return list(map(Edit, at, at, texts))
 
 
 def apply_edits(text: str, edits: list[Edit]) -> str:

@@ -81,19 +81,6 @@ def stamp_edit(prog: Program, plans) -> Edit | None:
     return Edit(at, at, text)
 
 
-def without_stamps(prog: Program) -> str:
-    """The text with stamp lines removed (for the only-S/F-changed check)."""
-    lines = sorted(s.line for s in read_stamps(prog).values())
-    if not lines:
-        return prog.text
-    keep, pos = [], 0
-    for line in lines:
-        keep.append(prog.text[pos:int(prog.line_start[line])])
-        pos = int(prog.line_start[line + 1])
-    keep.append(prog.text[pos:])
-    return "".join(keep)
-
-
 def _comment_lines(prog: Program, limit: int) -> list[int]:
     """Early lines that may hold a stamp (it is always near the top)."""
     n = min(prog.n_lines, limit)
