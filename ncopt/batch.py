@@ -17,7 +17,7 @@ import tempfile
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from .api import Job, rewrite_file
+from .api import rewrite_file
 from .errors import NcoptError, NothingToPlan, UsageError
 
 PROGRAM_SUFFIXES = {".nc", ".ngc", ".tap", ".gcode", ".mpf", ".spf", ".cnc", ".iso", ".h",

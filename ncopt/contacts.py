@@ -14,7 +14,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .geometry import MeshIndex, contacts_from_mesh
-from .model import Contacts, Cutter, Motion, Toolpath
+from .model import Contacts, Cutter, Toolpath
 from .pathnormals import PathNormals, contacts_from_path
 from .remaining import r_eff_material_mm
 from .tools import center_offset_mm

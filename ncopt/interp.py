@@ -21,7 +21,7 @@ import numpy as np
 
 from .errors import NcoptError
 from .expr import Params, Unknown
-from .model import LineKind, Motion, Program, Toolpath
+from .model import LineKind, Program, Toolpath
 
 MM_PER_INCH = 25.4
 

@@ -28,7 +28,8 @@ from scipy.spatial import cKDTree
 from .model import Contacts, Cutter
 from .tools import r_eff_mm
 
-K_NEIGHBOURS = 24
+K_NEIGHBOURS = 12  # enough for 4-5 points per pass on each side at CAM-typical spacings
+CHUNK = 131072
 OTHER_PASS_RATIO = 3.0  # path distance > ratio * straight distance: another pass
 CONFIDENT, ONE_SIDED, NO_CROSS = 2, 1, 0
 # A one-sided fit on a curved surface tilts the normal by about half the stepover
@@ -71,12 +72,18 @@ def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarra
     tangent = _tangents(pts, s)
     tree = cKDTree(pts)
     kk = min(k + 1, idx.size)
-    dist, nb = tree.query(pts, k=kk, workers=workers)
-    dist, nb = np.atleast_2d(dist)[:, 1:], np.atleast_2d(nb)[:, 1:]
-    other = np.abs(s[nb] - s[:, None]) > OTHER_PASS_RATIO * dist + 1e-9
-    n, conf, stepover = _fit_cross(pts, tangent, nb, dist, other)
-    normal[idx] = n
-    confidence[idx] = conf
+    near = []
+    for a in range(0, idx.size, CHUNK):  # bounded temporaries: (chunk, k, 3) at a time
+        b = min(a + CHUNK, idx.size)
+        dist, nb = tree.query(pts[a:b], k=kk, workers=workers)
+        dist, nb = np.atleast_2d(dist)[:, 1:], np.atleast_2d(nb)[:, 1:]
+        other = np.abs(s[nb] - s[a:b, None]) > OTHER_PASS_RATIO * dist + 1e-9
+        n, conf, closest = _fit_cross(pts[a:b], tangent[a:b], pts[nb], dist, other)
+        normal[idx[a:b]] = n
+        confidence[idx[a:b]] = conf
+        near.append(closest)
+    near = np.concatenate(near)
+    stepover = float(np.median(near[np.isfinite(near)])) if np.isfinite(near).any() else float("nan")
     return PathNormals(normal, confidence, stepover)
 
 
@@ -96,8 +103,9 @@ def _tangents(pts: np.ndarray, s: np.ndarray) -> np.ndarray:
     return t
 
 
-def _fit_cross(pts, tangent, nb, dist, other):
-    """Normal perpendicular to the tangent fitting the other-pass neighbours."""
+def _fit_cross(pts, tangent, nb_pts, dist, other):
+    """Normal perpendicular to the tangent fitting the other-pass neighbours; also the
+    distance to the nearest other-pass point (inf where there is none)."""
     up = np.array([0.0, 0.0, 1.0])
     u = np.cross(tangent, up)  # horizontal, across the pass
     un = np.linalg.norm(u, axis=1)
@@ -106,7 +114,7 @@ def _fit_cross(pts, tangent, nb, dist, other):
     u /= np.maximum(np.linalg.norm(u, axis=1), 1e-12)[:, None]
     v = np.cross(u, tangent)  # perpendicular to the tangent, in its vertical plane
     v[v[:, 2] < 0] *= -1.0
-    off = pts[nb] - pts[:, None, :]  # (m, k, 3)
+    off = nb_pts - pts[:, None, :]  # (m, k, 3)
     a = np.einsum("mkj,mj->mk", off, u)
     b = np.einsum("mkj,mj->mk", off, v)
     w = np.where(other, 1.0 / np.maximum(dist, 1e-9) ** 2, 0.0)
@@ -128,9 +136,7 @@ def _fit_cross(pts, tangent, nb, dist, other):
     side_pos = (other & (a > 0)).any(axis=1)
     side_neg = (other & (a < 0)).any(axis=1)
     conf = np.where(~has, NO_CROSS, np.where(side_pos & side_neg, CONFIDENT, ONE_SIDED))
-    near = np.where(other, dist, np.inf).min(axis=1)
-    stepover = float(np.median(near[np.isfinite(near)])) if np.isfinite(near).any() else float("nan")
-    return n, conf.astype(np.int8), stepover
+    return n, conf.astype(np.int8), np.where(other, dist, np.inf).min(axis=1)
 
 
 def contacts_from_path(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarray,

@@ -374,6 +374,8 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
             cur = fixed_rpm[b]
         elif cur is None or starts[b]:  # a spindle start: the control brings it to speed
             cur = real = float(max(math.floor(target), lo_int))
+        elif real == cur and cur <= target < cur + step:  # holding steady: nothing to do
+            pass
         else:
             r = ratio if cutting[b] else math.inf
             cur = max(_next_command(cur, real, target, inc_s2[b], inc_s[b], r, step), lo_int)
@@ -384,7 +386,7 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
         if cur != before:
             since_s = 0.0
         start = cur if real is None else real
-        real = _ramp(start, cur, inc_s2[b], inc_s[b])
+        real = cur if start == cur else _ramp(start, cur, inc_s2[b], inc_s[b])
         cmd_out[b], low_out[b], high_out[b] = cur, min(start, real), max(start, real)
         since_s += (60.0 * length[b] / (feed_per_rev_mm * max(min(start, real), 1.0))
                     if cutting[b] and feed_per_rev_mm > 0 else time_free[b])

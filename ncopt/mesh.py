@@ -1,0 +1,167 @@
+"""Part meshes: STL reading (binary and ASCII), vertex merging, resolution.
+
+Split from :mod:`ncopt.geometry`, which builds the closest-point index and the
+contacts on these meshes.  Lengths in mm.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+from stl import Mode
+from stl import mesh as stl_mesh
+
+from ncopt.errors import MeshError
+
+_STL_READ_ERRORS = (ValueError, RuntimeError, AssertionError, OSError, IndexError, UnicodeError)
+
+
+@dataclass(frozen=True)
+class Mesh:
+    """An indexed triangle mesh (libigl's names).
+
+    Attributes
+    ----------
+    V : (nv, 3) float64
+        Vertex positions, mm.
+    F : (nf, 3) int64
+        Vertex indices of each triangle, counter-clockwise seen from outside.
+    """
+
+    V: np.ndarray
+    F: np.ndarray
+
+    def __post_init__(self) -> None:
+        V = np.ascontiguousarray(self.V, dtype=np.float64)
+        F = np.ascontiguousarray(self.F, dtype=np.int64)
+        if V.ndim != 2 or V.shape[1] != 3:
+            raise ValueError(f"V must be (nv, 3), got {V.shape}")
+        if F.ndim != 2 or F.shape[1] != 3:
+            raise ValueError(f"F must be (nf, 3), got {F.shape}")
+        if F.size and (F.min() < 0 or F.max() >= V.shape[0]):
+            raise ValueError("F refers to vertices that do not exist")
+        object.__setattr__(self, "V", V)
+        object.__setattr__(self, "F", F)
+
+    @property
+    def n_faces(self) -> int:
+        return int(self.F.shape[0])
+
+
+def mesh_from_triangles(tri_mm: np.ndarray, merge_tol_mm: float = 1e-6) -> Mesh:
+    """Index a triangle soup, merging corners that round to the same point.
+
+    Parameters
+    ----------
+    tri_mm : (nf, 3, 3) float
+        Corners of each triangle, mm (STL order).
+    merge_tol_mm : float
+        Pitch of the rounding grid.
+
+    Returns
+    -------
+    Mesh
+        Shared corners are shared vertices; triangles that collapse are dropped.
+    """
+    pts = np.asarray(tri_mm, dtype=np.float64).reshape(-1, 3)
+    key = np.round(pts / merge_tol_mm).astype(np.int64)
+    order = np.lexsort(key.T[::-1])
+    new = np.ones(len(order), dtype=bool)
+    new[1:] = np.any(key[order[1:]] != key[order[:-1]], axis=1)
+    inverse = np.empty(len(order), dtype=np.int64)
+    inverse[order] = np.cumsum(new) - 1
+    F = inverse.reshape(-1, 3)
+    keep = (F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 2] != F[:, 0])
+    return Mesh(V=pts[order[new]], F=F[keep])
+
+
+def _stl_mode(path: Path) -> Mode:
+    """Binary or ASCII, checked against the file size (numpy-stl is lenient)."""
+    size = path.stat().st_size
+    with path.open("rb") as fh:
+        head = fh.read(84)
+    count = int.from_bytes(head[80:84], "little") if len(head) == 84 else -1
+    if count >= 0 and size == 84 + 50 * count:
+        return Mode.BINARY
+    if head.lstrip().lower().startswith(b"solid"):
+        return Mode.ASCII
+    if size < 84:
+        raise MeshError("file too short for an STL; export the part as STL", path=str(path))
+    raise MeshError(f"binary STL header says {count} triangles but the file has {size} "
+                    "bytes (truncated or not an STL); export the part again", path=str(path))
+
+
+def load_stl(path: str | os.PathLike, merge_tol_mm: float = 1e-6) -> Mesh:
+    """Read a binary or ASCII STL file (every solid of an ASCII file).
+
+    Parameters
+    ----------
+    path : str or path-like
+    merge_tol_mm : float
+        See :func:`mesh_from_triangles`.
+
+    Returns
+    -------
+    Mesh
+        Coordinates in the file's units, taken as mm.
+
+    Raises
+    ------
+    MeshError
+        Missing, unreadable or truncated file, no triangles, non-finite
+        coordinates.  ``str(err)`` starts with the path.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise MeshError("no such file; check the mesh path", path=str(p))
+    mode = _stl_mode(p)
+    try:
+        parts = list(stl_mesh.Mesh.from_multi_file(str(p), calculate_normals=False, mode=mode))
+    except _STL_READ_ERRORS as exc:
+        raise MeshError(f"not a readable STL file ({exc}); export the part again",
+                        path=str(p)) from exc
+    tri = np.concatenate([m.vectors for m in parts]) if parts else np.zeros((0, 3, 3))
+    if tri.shape[0] == 0:
+        raise MeshError("the STL holds no triangles; export the part again", path=str(p))
+    if not np.all(np.isfinite(tri)):
+        raise MeshError("the STL holds non-finite coordinates; export it again", path=str(p))
+    mesh = mesh_from_triangles(tri, merge_tol_mm)
+    if mesh.n_faces == 0:
+        raise MeshError("every triangle of the STL is degenerate", path=str(p))
+    return mesh
+
+
+class EdgeLengths(NamedTuple):
+    """Triangle edge lengths of a mesh, mm: compare them with the tool radius."""
+
+    median_mm: float
+    p95_mm: float
+    max_mm: float
+
+
+def mesh_resolution_mm(mesh: Mesh) -> EdgeLengths:
+    """How coarse a mesh is: median, 95th percentile and largest edge length.
+
+    Parameters
+    ----------
+    mesh : Mesh
+
+    Returns
+    -------
+    EdgeLengths
+        Over all triangle edges, mm.  Facets of edge ``h`` on a radius ``rho``
+        differ by about ``h / rho`` rad; facet normals err by up to half that.
+    """
+    P = mesh.V[mesh.F]
+    lengths = np.linalg.norm(P - np.roll(P, -1, axis=1), axis=2).ravel()
+    if lengths.size == 0:
+        return EdgeLengths(0.0, 0.0, 0.0)
+    med, p95 = np.percentile(lengths, [50.0, 95.0])
+    return EdgeLengths(float(med), float(p95), float(lengths.max()))
+
+
+# ---------------------------------------------------------------- chunks and the pool
