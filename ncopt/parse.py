@@ -76,10 +76,13 @@ _TAPE_MARK = re.compile(r"(?m)^[ \t]*(?:[Nn][0-9.]*[ \t]*)?%")
 def _trailer_start(text: str, line_start: np.ndarray) -> int:
     """First line after the closing ``%`` (controls read nothing after it)."""
     marks = []
-    for m in _TAPE_MARK.finditer(text):
-        marks.append(m.start())
-        if len(marks) == 2:
-            break
+    pos = text.find("%")
+    while pos >= 0 and len(marks) < 2:  # '%' is rare: look only where it stands
+        bol = text.rfind("\n", 0, pos) + 1
+        m = _TAPE_MARK.match(text, bol)
+        if m and m.end() == pos + 1:
+            marks.append(bol)
+        pos = text.find("%", pos + 1)
     if not marks:
         return line_start.shape[0] - 1
     opening = text[: marks[0]].strip() == ""
