@@ -99,6 +99,7 @@ class Summary:
     no_cross_points: int = 0
     close_s_words: int = 0
     control: str = ""
+    control_source: str = ""
     control_notes: tuple = ()
 
     @property
@@ -161,8 +162,11 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     if job.verify:
         verify(prog, tp, out, targets, s_style, f_style)
     summary = _summary(prog, tp, idx, plans, skipped, edits, mesh_edge)
-    control = job.control or detect(text).name
-    summary = replace(summary, control=control,
+    found = detect(text)
+    control = job.control or found.name
+    source = "given" if job.control else (
+        f"detected from {len(found.marks)} marks" if found.marks else "no marks: generic")
+    summary = replace(summary, control=control, control_source=source,
                       control_notes=(control_note(control, summary.s_words),))
     return Result(out, summary, prog, tp, idx, tuple(plans), targets)
 

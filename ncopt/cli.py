@@ -82,8 +82,8 @@ FzPolicy = Annotated[str, typer.Option(
 FzBand = Annotated[float, typer.Option("--fz-band", help="Allowed fz deviation while the "
                                        "spindle ramps, percent.")]
 Control = Annotated[Optional[str], typer.Option(
-    "--control", help="sinumerik, fanuc, linuxcnc, grbl, heidenhain-iso or generic "
-    "(default: detected from the program).")]
+    "--dialect", "--control", help="The control the program is for: sinumerik, fanuc, "
+    "linuxcnc, grbl, heidenhain-iso or generic (default: detected from the program's marks).")]
 MethodName = Annotated[str, typer.Option(
     "--method", help="contact: R_eff at the contact point (default); material: where the "
     "edge meets the remaining material (the paper's second method).")]
@@ -170,7 +170,7 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
     if not 0 < fz_band < 50:
         raise UsageError("--fz-band is a percentage above 0 and below 50")
     if control is not None and control not in CONTROLS:
-        raise UsageError(f"--control must be one of {', '.join(CONTROLS)}, not {control!r}")
+        raise UsageError(f"--dialect must be one of {', '.join(CONTROLS)}, not {control!r}")
     if min_s_interval_ms < 0:
         raise UsageError("--min-s-interval-ms cannot be negative")
     if method not in ("contact", "material"):
@@ -269,6 +269,7 @@ def print_summary(s: Summary, console: Console) -> None:
         if s.no_cross_points:
             say(f"ncopt: {s.no_cross_points} cutting points have no neighbouring pass: their "
                 "cross-slope is unknown and taken as zero")
+    say(f"ncopt: dialect {s.control} ({s.control_source})")
     for note in s.control_notes:
         say(f"ncopt: {s.control} control: {note}")
     if s.close_s_words:
