@@ -165,7 +165,8 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     found = detect(text)
     control = job.control or found.name
     source = "given" if job.control else (
-        f"detected from {len(found.marks)} marks" if found.marks else "no marks: generic")
+        f"detected from {len(found.marks)} mark{'s' if len(found.marks) > 1 else ''}"
+        if found.marks else "no marks: generic")
     summary = replace(summary, control=control, control_source=source,
                       control_notes=(control_note(control, summary.s_words),))
     return Result(out, summary, prog, tp, idx, tuple(plans), targets)
