@@ -60,8 +60,31 @@ def totals(a_lines: list[str], b_lines: list[str]) -> DiffTotals:
     return DiffTotals(max(len(a_lines), len(b_lines)), changed, s, f)
 
 
+_STAMP = re.compile(r"^\s*(?:\(|;)\s*ncopt \S+ T-?\d+ vc=")
+
+
 def _rows(a_lines: list[str], b_lines: list[str]) -> Iterator[tuple]:
-    """(kind, number_a, text_a, number_b, text_b) rows; kind 'fold' carries a count."""
+    """(kind, number_a, text_a, number_b, text_b) rows; kind 'fold' carries a count.
+
+    A rewrite keeps every line and adds its stamp comment at the top: the stamp
+    lines are shown first and the rest is paired line by line (fast on 1M lines);
+    other pairs of programs go through difflib.
+    """
+    a_stamps = [i for i, t in enumerate(a_lines[:50]) if _STAMP.match(t)]
+    b_stamps = [i for i, t in enumerate(b_lines[:50]) if _STAMP.match(t)]
+    if len(a_lines) - len(a_stamps) == len(b_lines) - len(b_stamps) and (a_stamps or b_stamps):
+        for i in b_stamps:
+            if b_lines[i] not in [a_lines[j] for j in a_stamps]:
+                yield ("change", None, "", i + 1, b_lines[i])
+        a_rest = [t for i, t in enumerate(a_lines) if i not in set(a_stamps)]
+        b_rest = [t for i, t in enumerate(b_lines) if i not in set(b_stamps)]
+        for row in _rows(a_rest, b_rest):
+            if row[0] == "fold":
+                yield row
+            else:  # back to the files' own line numbers
+                yield (row[0], _renumber(row[1], a_stamps), row[2],
+                       _renumber(row[3], b_stamps), row[4])
+        return
     if len(a_lines) != len(b_lines):
         yield from _rows_difflib(a_lines, b_lines)
         return
@@ -82,6 +105,17 @@ def _rows(a_lines: list[str], b_lines: list[str]) -> Iterator[tuple]:
         shown = hi
     if shown < n:
         yield ("fold", n - shown)
+
+
+def _renumber(number: int | None, skipped: list[int]) -> int | None:
+    """A 1-based line number counted without the skipped lines, in the file's numbering."""
+    if number is None:
+        return None
+    n = number
+    for s in sorted(skipped):
+        if s < n:
+            n += 1
+    return n
 
 
 def _rows_difflib(a_lines, b_lines) -> Iterator[tuple]:
