@@ -260,7 +260,6 @@ class PlanOptions:
     min_rpm_step : emit S only when it changes by at least this many RPM
     fz_tolerance : allowed relative fz drift inside a block while the spindle ramps
     sample_mm : longest distance between contact samples along a block, mm
-    split : split long blocks into collinear pieces so F follows S
     f_quantum_mm_min : resolution of the F words written (1 for ``F279``), mm/min: F is
         rounded down to it, which the fz band must absorb
     fz_policy : ``"centred"`` (default): F from the harmonic mean of the block's lowest and
@@ -275,7 +274,6 @@ class PlanOptions:
     min_rpm_step: float = 10.0
     fz_tolerance: float = 0.02
     sample_mm: float = 1.0
-    split: bool = False
     f_quantum_mm_min: float = 0.0
     fz_policy: str = "centred"
     min_s_interval_ms: float = 0.0
