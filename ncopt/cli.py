@@ -117,7 +117,7 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
              max_rpm=None, min_rpm=None, max_feed=None, planner="lookahead",
              tool_point="tip", min_rpm_step=10.0, tool=None, rapid=None,
              fz_policy="centred", fz_band=2.0, control=None, min_s_interval_ms=None,
-             machine=None, tools_file=None, cutter_name=None, material=None,
+             machine=None, tools_file=None, cutter=None, material=None,
              method="contact", ap=0.2, allowance_along="normal") -> Job:
     """A Job from command-line values and the profiles, checked; raises UsageError.
 
@@ -135,12 +135,12 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
     min_rpm, max_feed = pick(min_rpm, "min_rpm", 0.0), pick(max_feed, "max_feed_mm_min", float("inf"))
     rapid, control = pick(rapid, "rapid_mm_min", 10000.0), pick(control, "control", None)
     min_s_interval_ms = pick(min_s_interval_ms, "min_s_interval_ms", 0.0)
-    if cutter_name is not None:
+    if cutter is not None:
         if diameter is not None:
             raise UsageError("give --cutter or --diameter, not both")
-        named = profiles.tool(cutter_name)
+        named = profiles.tool(cutter)
         if named is None:
-            raise UsageError(f"no tool {cutter_name!r} in the profiles; see ncopt profiles")
+            raise UsageError(f"no tool {cutter!r} in the profiles; see ncopt profiles")
         diameter, corner_radius, teeth = named.diameter_mm, named.corner_radius_mm, named.teeth
     if material is not None:
         if vc is not None or fz is not None:
@@ -179,8 +179,8 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
         raise UsageError(f"--allowance-along must be normal or axis, not {allowance_along!r}")
     if not ap > 0:
         raise UsageError("--ap must be positive")
-    cutter = Cutter(diameter, teeth, corner_radius, tool_point) if diameter is not None else None
-    return Job(cutter=cutter, machine=Machine(accel, max_rpm, min_rpm, max_feed, rapid),
+    chosen = Cutter(diameter, teeth, corner_radius, tool_point) if diameter is not None else None
+    return Job(cutter=chosen, machine=Machine(accel, max_rpm, min_rpm, max_feed, rapid),
                cutting=CuttingData(vc, fz) if vc is not None else None,
                options=PlanOptions(planner=planner, min_rpm_step=min_rpm_step,
                                    fz_tolerance=fz_band / 100.0, fz_policy=fz_policy,
@@ -188,6 +188,12 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
                tool=tool, teeth=teeth, control=control,
                method=Method(method, ap, allowance_along),
                tool_library={k: c for k, (c, _) in profiles.tools.items() if isinstance(k, int)})
+
+
+def _job_options(values: dict) -> dict:
+    """The command's options that make_job takes (commands share their names)."""
+    names = make_job.__code__.co_varnames[:make_job.__code__.co_argcount]
+    return {k: v for k, v in values.items() if k in names}
 
 
 def _read(path: str) -> bytes:
@@ -235,10 +241,7 @@ def rewrite(
 ) -> None:
     """Rewrite a program's S and F words; every other byte stays as it is."""
     try:
-        job = make_job(diameter, corner_radius, teeth, vc, fz, accel, max_rpm, min_rpm,
-                       max_feed, planner, tool_point, min_rpm_step, tool, rapid, fz_policy,
-                       fz_band, control, min_s_interval_ms, machine, tools_file, cutter,
-                       material, method, ap, allowance_along)
+        job = make_job(**_job_options(locals()))
         data = sys.stdin.buffer.read() if input == "-" else _read(input)
         result = rewrite_file(input, job, mesh_path=mesh, data=data)
         _write(output, result.text.encode("latin-1"), input)
@@ -305,10 +308,7 @@ def batch(
     from .batchview import BatchView
 
     try:
-        job = make_job(diameter, corner_radius, teeth, vc, fz, accel, max_rpm, min_rpm,
-                       max_feed, planner, tool_point, min_rpm_step, tool, rapid, fz_policy,
-                       fz_band, control, min_s_interval_ms, machine, tools_file, cutter,
-                       material, method, ap, allowance_along)
+        job = make_job(**_job_options(locals()))
         base, files = find_programs(inputs)
         if in_place and output is not None:
             raise UsageError("give either -o OUTDIR or --in-place, not both")
@@ -360,9 +360,7 @@ def simulate(
     from .simulate import simulate_program
 
     try:
-        job = make_job(diameter, corner_radius, teeth, vc, fz, accel, max_rpm, min_rpm,
-                       max_feed, "lookahead", tool_point, 10.0, tool, rapid, machine=machine,
-                       tools_file=tools_file, cutter_name=cutter, material=material)
+        job = make_job(**_job_options(locals()))
         index = MeshIndex(load_stl(mesh)) if mesh else None
         runs = []
         for name in ([against] if against else []) + [program]:
