@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import glob
+import shutil
 import multiprocessing as mp
 import os
 import signal
@@ -21,7 +22,7 @@ from .api import rewrite_file
 from .errors import NcoptError, NothingToPlan, UsageError
 
 PROGRAM_SUFFIXES = {".nc", ".ngc", ".tap", ".gcode", ".mpf", ".spf", ".cnc", ".iso", ".h",
-                    ".eia", ".ptp", ".min", ".txt"}
+                    ".eia", ".ptp", ".min"}
 TMP_SUFFIX = ".ncopt-tmp"
 
 
@@ -62,9 +63,10 @@ def target_for(src: Path, base: Path, out_dir: Path | None, in_place: bool) -> P
         return src
     if out_dir is None:
         raise UsageError("give an output folder with -o, or --in-place to replace the originals")
-    rel = src.resolve().relative_to(base.resolve())
-    target = (out_dir / rel).resolve()
-    if not target.is_relative_to(out_dir.resolve()):
+    # the path as found in the folder (a symlink to elsewhere keeps its place in it)
+    rel = Path(os.path.abspath(src)).relative_to(os.path.abspath(base))
+    target = Path(os.path.abspath(out_dir / rel))
+    if not target.is_relative_to(os.path.abspath(out_dir)) or ".." in rel.parts:
         raise UsageError(f"refusing to write outside {out_dir}", str(target))
     return target
 
@@ -79,14 +81,26 @@ def write_atomic(target: Path, data: bytes, backup_suffix: str | None = None) ->
             handle.flush()
             os.fsync(handle.fileno())
         if backup_suffix and target.exists():
-            backup = target.with_name(target.name + backup_suffix)
-            if not backup.exists():
-                os.link(target, backup) if hasattr(os, "link") else backup.write_bytes(
-                    target.read_bytes())
+            if target.read_bytes() == data:  # already so: nothing to replace, nothing to back up
+                Path(tmp).unlink()
+                return
+            _backup(target, target.with_name(target.name + backup_suffix))
         os.replace(tmp, target)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def _backup(target: Path, backup: Path) -> None:
+    """The version this run replaces becomes NAME.bak (the file itself, hard-linked, so
+    nothing is copied; a copy where links are not possible), replacing an older backup."""
+    tmp = backup.with_name(f".{backup.name}.link{TMP_SUFFIX}")
+    tmp.unlink(missing_ok=True)
+    try:
+        os.link(target, tmp)
+    except OSError:
+        shutil.copy2(target, tmp)
+    os.replace(tmp, backup)
 
 
 def process_one(args: tuple) -> FileReport:

@@ -360,6 +360,7 @@ def simulate(
     from .simulate import simulate_program
 
     try:
+        _check_outputs(color_by, csv, plot, plot_path)
         job = make_job(**_job_options(locals()))
         index = MeshIndex(load_stl(mesh)) if mesh else None
         runs = []
@@ -375,16 +376,35 @@ def simulate(
         _fail(exc)
 
 
+COLOR_BY = ("s_rpm", "f_mm_min", "d_eff_mm", "vc_m_min")
+PLOT_SUFFIXES = (".png", ".svg", ".pdf")
+
+
+def _check_outputs(color_by, csv, plot, plot_path) -> None:
+    """Refuse bad output options before the (long) simulation, not after it."""
+    if color_by not in COLOR_BY:
+        raise UsageError(f"--color-by must be one of {', '.join(COLOR_BY)}, not {color_by!r}")
+    for path, option in ((plot, "--plot"), (plot_path, "--plot-toolpath")):
+        if path is not None and Path(path).suffix.lower() not in PLOT_SUFFIXES:
+            raise UsageError(f"{option} writes PNG, SVG or PDF: name the file .png, .svg or .pdf")
+    for path in (csv, plot, plot_path):
+        if path is not None and not Path(path).resolve().parent.is_dir():
+            raise _IoError("the folder to write into does not exist; create it first", str(path))
+
+
 def _simulation_outputs(runs, as_json, csv, plot, plot_path, color_by) -> None:
     name, series, report = runs[-1]
-    if csv is not None:
-        series.write_csv(csv)
-    if plot is not None or plot_path is not None:
-        from .plots import plot_along_path, plot_toolpath
-        if plot is not None:
-            plot_along_path(runs, plot)
-        if plot_path is not None:
-            plot_toolpath(series, plot_path, color_by)
+    try:
+        if csv is not None:
+            series.write_csv(csv)
+        if plot is not None or plot_path is not None:
+            from .plots import plot_along_path, plot_toolpath
+            if plot is not None:
+                plot_along_path(runs, plot)
+            if plot_path is not None:
+                plot_toolpath(series, plot_path, color_by)
+    except OSError as exc:
+        raise _IoError(f"cannot write the output: {exc.strerror or exc}", exc.filename) from None
     if as_json:
         out = {r[0]: r[2].to_dict() for r in runs} if len(runs) > 1 else report.to_dict()
         print(json.dumps(out, indent=2))

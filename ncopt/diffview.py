@@ -48,10 +48,12 @@ def changed_words(a: str, b: str) -> tuple[list[tuple[str, bool]], list[tuple[st
 
 
 def totals(a_lines: list[str], b_lines: list[str]) -> DiffTotals:
+    """Changed lines counted on the same pairing the view shows (a stamp is one line)."""
     changed = s = f = 0
-    for a, b in zip_longest(a_lines, b_lines, fillvalue=""):
-        if a == b:
+    for row in _rows(a_lines, b_lines):
+        if row[0] != "change":
             continue
+        a, b = row[2], row[4]
         changed += 1
         _, fb = changed_words(a, b)
         letters = {t.strip()[:1].upper() for t, diff in fb if diff and t.strip()}
@@ -138,7 +140,8 @@ def render_side_by_side(a_name: str, b_name: str, a_lines, b_lines, console: Con
     width = max((console.width - 14) // 2, 20)
     for row in _rows(a_lines, b_lines):
         if row[0] == "fold":
-            console.print(Text(f"  ··· {row[1]} unchanged lines ···", style="dim"))
+            lines = "line" if row[1] == 1 else "lines"
+            console.print(Text(f"  ··· {row[1]} unchanged {lines} ···", style="dim"))
             continue
         kind, na, ta, nb, tb = row
         left, right = Text(no_wrap=True, overflow="ellipsis"), Text(no_wrap=True, overflow="ellipsis")

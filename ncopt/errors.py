@@ -28,6 +28,8 @@ class NcoptError(Exception):
         return ":".join(parts)
 
     def __str__(self) -> str:
+        if self.path is None and self.line is None:  # about options, not a file
+            return self.message
         return f"{self.location}: {self.message}"
 
 

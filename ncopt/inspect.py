@@ -78,12 +78,13 @@ def inspect_text(text: str, path: str = "<input>") -> Inspection:
 def render_inspection(info: Inspection, out) -> None:
     """The inspection as a few readable lines on a rich console."""
     say = lambda text: out.print(text, markup=False)  # noqa: E731
-    say(f"{info.path}: {info.dialect} dialect, {info.units}, {info.lines} lines")
+    why = f"{len(info.dialect_marks)} mark{'s' if len(info.dialect_marks) != 1 else ''}"
+    say(f"{info.path}: {info.dialect} dialect ({why}), {info.units}, {info.lines} lines")
     say(f"  blocks {info.blocks}, moves {info.moves} (feed {info.feed_moves}, rapid "
         f"{info.rapids}, arcs {info.arcs}), not plannable {info.unknown_moves}")
     for t in info.tools:
-        say(f"  tool T{t[0]}: {t[1]} D{t[2]:g} r{t[3]:g} (line {t[4]})")
-    say(f"  tools cutting: {', '.join(f'T{t}' for t in info.tools_used) or 'none'}")
+        say(f"  tool {_name(t[0])}: {t[1]} D{t[2]:g} r{t[3]:g} (line {t[4]})")
+    say(f"  tools cutting: {', '.join(_name(t) for t in info.tools_used) or 'none'}")
     say(f"  S {info.s_range_rpm[0]:g}..{info.s_range_rpm[1]:g} RPM, "
         f"F {info.f_range_mm_min[0]:g}..{info.f_range_mm_min[1]:g} mm/min")
     say(f"  cutting {info.cut_length_mm:.0f} mm in {info.cut_time_min:.1f} min at the "
@@ -94,3 +95,7 @@ def render_inspection(info: Inspection, out) -> None:
         say(f"  ... {len(info.opaque) - 20} more lines left alone")
     for w in info.warnings[:20]:
         say(f"  warning: {w}")
+
+
+def _name(tool: int) -> str:
+    return f"T{tool}" if tool >= 0 else "a tool with no T number"

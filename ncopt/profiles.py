@@ -98,12 +98,16 @@ def load(cwd: Path | None = None, tools_file: Path | None = None) -> Profiles:
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
             raise UsageError(f"cannot read the profile: {exc}; fix the TOML", str(path)) from None
         src = str(path)
-        for name, m in data.get("machines", {}).items():
-            machines[name] = _machine(name, m, src)
-        for key, t in data.get("tools", {}).items():
-            tools[int(key) if str(key).isdigit() else key] = (_tool(key, t, src), src)
-        for name, c in data.get("cutting", {}).items():
-            cutting[name] = (_cutting(name, c, src), src)
+        try:
+            for name, m in data.get("machines", {}).items():
+                machines[name] = _machine(name, m, src)
+            for key, t in data.get("tools", {}).items():
+                tools[int(key) if str(key).isdigit() else key] = (_tool(key, t, src), src)
+            for name, c in data.get("cutting", {}).items():
+                cutting[name] = (_cutting(name, c, src), src)
+        except (ValueError, TypeError, AttributeError) as exc:
+            raise UsageError(f"a value of the wrong kind ({exc}); numbers must be numbers "
+                             "and sections tables", src) from None
         if "default_machine" in data:
             default = (data["default_machine"], src)
     return Profiles(machines, tools, cutting, default, tuple(str(p) for p in files))
@@ -115,25 +119,39 @@ def _need(entry: dict, key: str, what: str, src: str):
     return entry[key]
 
 
+def _number(entry: dict, key: str, what: str, src: str, default=None) -> float:
+    """A number from a profile entry, or a message naming the key."""
+    value = _need(entry, key, what, src) if default is None else entry.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise UsageError(f"{what}: {key} must be a number, not {value!r}", src)
+    return float(value)
+
+
 def _machine(name: str, m: dict, src: str) -> MachineProfile:
     what = f"machine {name!r}"
-    return MachineProfile(name, src, float(_need(m, "accel_rad_s2", what, src)),
-                          float(_need(m, "max_rpm", what, src)), float(m.get("min_rpm", 0.0)),
-                          float(m.get("max_feed_mm_min", float("inf"))),
-                          float(m.get("rapid_mm_min", 10000.0)), m.get("control"),
-                          float(m.get("min_s_interval_ms", 0.0)))
+    if not isinstance(m, dict):
+        raise UsageError(f"{what} must be a table [machines.{name}]", src)
+    return MachineProfile(name, src, _number(m, "accel_rad_s2", what, src),
+                          _number(m, "max_rpm", what, src), _number(m, "min_rpm", what, src, 0.0),
+                          _number(m, "max_feed_mm_min", what, src, float("inf")),
+                          _number(m, "rapid_mm_min", what, src, 10000.0), m.get("control"),
+                          _number(m, "min_s_interval_ms", what, src, 0.0))
 
 
 def _tool(key, t: dict, src: str) -> Cutter:
     what = f"tool {key!r}"
-    d = float(_need(t, "diameter_mm", what, src))
+    if not isinstance(t, dict):
+        raise UsageError(f"{what} must be a table [tools.{key}]", src)
+    d = _number(t, "diameter_mm", what, src)
     kind = t.get("type", "ball")
     if kind not in ("ball", "bull-nose"):
         raise UsageError(f"{what}: type must be ball or bull-nose, not {kind!r}", src)
-    r = d / 2 if kind == "ball" else float(_need(t, "corner_radius_mm", what, src))
-    return Cutter(d, int(t.get("teeth", 2)), r)
+    r = d / 2 if kind == "ball" else _number(t, "corner_radius_mm", what, src)
+    return Cutter(d, int(_number(t, "teeth", what, src, 2)), r)
 
 
 def _cutting(name: str, c: dict, src: str) -> CuttingData:
     what = f"cutting data {name!r}"
-    return CuttingData(float(_need(c, "vc_m_min", what, src)), float(_need(c, "fz_mm", what, src)))
+    if not isinstance(c, dict):
+        raise UsageError(f"{what} must be a table [cutting.{name}]", src)
+    return CuttingData(_number(c, "vc_m_min", what, src), _number(c, "fz_mm", what, src))

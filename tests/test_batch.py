@@ -1,0 +1,420 @@
+"""``ncopt batch`` on the whole shared corpus plus broken files, in place, and interrupted.
+
+The corpus is read from ``../shared/corpus`` and copied into a temporary folder (never into
+the project); the batch runs with two worker processes as on the 2-core machine.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import random
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import traceback
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from ncopt.cli import Exit, app
+from ncopt.errors import NcoptError
+from ncopt.inspect import inspect_text
+from ncopt.parse import parse_text
+from ncopt.rewrite import masked
+
+ROOT = Path(__file__).resolve().parents[1]
+CORPUS = Path(__file__).resolve().parents[1].parent / "shared" / "corpus"
+BOWL_MPF = ROOT / "samples" / "bowl.mpf"
+SUFFIXES = {".nc", ".ngc", ".tap", ".gcode"}
+OPTIONS = ["--diameter", "3", "--accel", "227", "--max-rpm", "15000"]
+TMP_SUFFIX = ".ncopt-tmp"
+BATCH_BUDGET_S = 40.0
+STAMP = re.compile(r"^\s*[(;]\s*ncopt \S+ T-?\d+ vc=")
+LOCATED = re.compile(r"line (\d+)(?::(\d+))?: \S")
+
+
+def invoke(args):
+    runner = CliRunner(env={"NO_COLOR": "1", "TERM": "dumb", "COLUMNS": "100"})
+    result = runner.invoke(app, [str(a) for a in args])
+    if result.exception is not None and not isinstance(result.exception, SystemExit):
+        raise AssertionError(
+            f"ncopt crashed with exit code {result.exit_code} instead of a clean result:\n"
+            + "".join(traceback.format_exception(*result.exc_info, limit=-3)) + result.stderr)
+    for stream in (result.stdout, result.stderr):
+        assert "\x1b[" not in stream and "Traceback" not in stream
+    return result
+
+
+def sha(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def snapshot(folder: Path) -> dict[str, str]:
+    """Every file under a folder (symlinks not followed) and its sha256."""
+    return {str(p.relative_to(folder)): sha(p) for p in sorted(folder.rglob("*"))
+            if p.is_file() and not p.is_symlink()}
+
+
+def corpus_programs() -> list[Path]:
+    return sorted(p for p in CORPUS.rglob("*") if p.is_file() and p.suffix.lower() in SUFFIXES)
+
+
+BROKEN = {
+    "broken/random.nc": bytes(random.Random(20240611).randrange(256) for _ in range(4000)),
+    "broken/unclosed.ngc": b"G21 G90\nS1000 M3\nG1 X1 Y1 Z0 F100 (this comment never ends\n"
+                           b"G1 X2\nM30\n",
+    "broken/empty.tap": b"",
+    "broken/binary.nc": b"\x7fELF\x02\x01\x01\x00" + bytes(range(256)) * 8,
+}
+
+
+def without_stamp(base: str, longer: str) -> str:
+    """``longer`` minus the one stamp comment line a rewrite adds near the top."""
+    a, b = base.splitlines(keepends=True), longer.splitlines(keepends=True)
+    assert len(b) == len(a) + 1
+    i = next((k for k, (x, y) in enumerate(zip(a, b)) if x != y), len(a))
+    assert STAMP.match(b[i]), b[i]
+    return "".join(b[:i] + b[i + 1:])
+
+
+# --------------------------------------------------- the whole corpus, once ----
+@pytest.fixture(scope="module")
+def corpus_run(tmp_path_factory):
+    if not CORPUS.is_dir():
+        pytest.fail(f"the shared corpus is missing at {CORPUS}")
+    top = tmp_path_factory.mktemp("batch")
+    src, out, cwd = top / "in", top / "out", top / "cwd"
+    cwd.mkdir()
+    programs = corpus_programs()
+    assert len(programs) >= 150
+    for p in programs:
+        target = src / p.relative_to(CORPUS)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(p, target)
+    for rel, data in BROKEN.items():
+        (src / rel).parent.mkdir(parents=True, exist_ok=True)
+        (src / rel).write_bytes(data)
+    report = top / "report.json"
+    before = snapshot(top)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr("ncopt.profiles.user_file", lambda: top / "user" / "ncopt.toml")
+        mp.chdir(cwd)
+        t0 = time.monotonic()
+        result = invoke(["batch", src, *OPTIONS, "-o", out, "--report", report, "--jobs", "2"])
+        elapsed = time.monotonic() - t0
+    inputs = sorted(str(p) for p in src.rglob("*") if p.is_file())
+    return dict(top=top, src=src, out=out, cwd=cwd, report=report, result=result,
+                elapsed=elapsed, before=before, inputs=inputs,
+                entries=json.loads(report.read_text()) if report.exists() else None)
+
+
+def test_corpus_batch_finishes_with_some_failed_in_time(corpus_run):
+    result = corpus_run["result"]
+    assert result.exit_code == Exit.SOME_FAILED, result.stderr[-2000:]
+    assert corpus_run["elapsed"] < BATCH_BUDGET_S, f"{corpus_run['elapsed']:.1f} s"
+    assert result.stdout == ""
+    entries = corpus_run["entries"]
+    counts = {k: sum(e["status"] == k for e in entries) for k in ("ok", "unchanged", "failed")}
+    assert all(counts.values())
+    assert result.stderr.splitlines()[-1] == (
+        f"ncopt: {counts['ok']} rewritten, {counts['unchanged']} unchanged (nothing to plan), "
+        f"{counts['failed']} failed, of {len(entries)} files")
+
+
+def test_report_lists_every_input_once(corpus_run):
+    entries, src, out = corpus_run["entries"], corpus_run["src"], corpus_run["out"]
+    sources = [e["source"] for e in entries]
+    assert sorted(sources) == corpus_run["inputs"]  # each exactly once, nothing else
+    assert len(sources) == len(set(sources)) == len(corpus_programs()) + len(BROKEN)
+    for e in entries:
+        assert e["status"] in ("ok", "unchanged", "failed")
+        assert Path(e["target"]) == (out / Path(e["source"]).relative_to(src)).resolve()
+        assert "internal error" not in e["error"], e
+    status = {str(Path(e["source"]).relative_to(src)): e for e in entries}
+    assert status["fusion/BowlTest.nc"]["status"] == "ok"
+    assert status["linuxcnc/3D_Chips.ngc"]["status"] == "ok"
+    assert status["broken/empty.tap"]["status"] == "unchanged"
+    for rel in ("broken/random.nc", "broken/unclosed.ngc", "broken/binary.nc"):
+        assert status[rel]["status"] == "failed"
+    for e in entries:
+        if "/interp-tests/bad/" in e["source"]:
+            assert e["status"] == "failed", e
+
+
+def test_failed_files_carry_located_messages(corpus_run):
+    entries, src = corpus_run["entries"], corpus_run["src"]
+    failed = [e for e in entries if e["status"] == "failed"]
+    unclosed = next(e for e in failed if e["source"].endswith("broken/unclosed.ngc"))
+    assert unclosed["error"] == ("line 3:18: unbalanced comment parentheses; close every '(' "
+                                 "with ')' on the same line")
+    for e in failed:
+        path = Path(e["source"])
+        error = e["error"]
+        assert error and not error.startswith(str(path)), e  # the report names the file
+        assert e["blocks"] == e["s_words"] == e["f_words"] == 0
+        # where the program itself is unreadable, the report says where, as inspect does
+        try:
+            inspect_text(path.read_bytes().decode("latin-1"), str(path))
+        except NcoptError as exc:
+            assert exc.line is not None, exc
+            where = f"line {exc.line}" + (f":{exc.column}" if exc.column else "")
+            assert error == f"{where}: {exc.message}", (e, str(exc))
+            continue
+        # readable programs fail as a whole (no S/F, several tools): what is wrong; what to do
+        assert "; " in error, e
+    for rel in ("broken/random.nc", "broken/binary.nc"):
+        e = next(e for e in failed if e["source"] == str(src / rel))
+        m = LOCATED.match(e["error"])
+        assert m and m[2] is not None, e
+
+
+def test_originals_are_byte_identical(corpus_run):
+    src, top = corpus_run["src"], corpus_run["top"]
+    before = {k: v for k, v in corpus_run["before"].items() if k.startswith("in/")}
+    assert snapshot(src) == {k.removeprefix("in/"): v for k, v in before.items()}
+    for p in corpus_programs():  # and the shared corpus itself
+        assert (src / p.relative_to(CORPUS)).read_bytes() == p.read_bytes()
+    assert top.joinpath("in").is_dir()
+
+
+def test_outputs_mirror_the_inputs(corpus_run):
+    entries, src, out = corpus_run["entries"], corpus_run["src"], corpus_run["out"]
+    expected = set()
+    for e in entries:
+        rel = Path(e["source"]).relative_to(src)
+        target = out / rel
+        if e["status"] == "failed":
+            assert not target.exists(), e
+            continue
+        expected.add(str(rel))
+        data, original = target.read_bytes(), Path(e["source"]).read_bytes()
+        if e["status"] == "unchanged":
+            assert data == original, e
+            continue
+        # a rewrite: one stamp line more, and with S and F masked the input's own text
+        text, base = data.decode("latin-1"), original.decode("latin-1")
+        plain = without_stamp(base, text)
+        assert masked(parse_text(plain)) == masked(parse_text(base)), e
+        assert e["s_words"] + e["f_words"] > 0 and e["blocks"] > 0, e
+    assert set(snapshot(out)) == expected  # nothing else in OUT
+
+
+def test_no_temporary_and_nothing_outside_out(corpus_run):
+    top, out = corpus_run["top"], corpus_run["out"]
+    assert not [p for p in top.rglob("*") if p.name.endswith(TMP_SUFFIX)]
+    assert not [p for p in out.rglob(".*")]  # no hidden leftovers either
+    after = {k: v for k, v in snapshot(top).items()
+             if not k.startswith("out/") and k != "report.json"}
+    assert after == corpus_run["before"]
+    assert not any(corpus_run["cwd"].iterdir())  # the working folder stays empty
+    assert not (top / "user").exists()
+
+
+# ----------------------------------------------------------------- in place ----
+SMALL = {"Clamp.nc": "pygcode/Clamp.nc", "Smiley001.nc": "pygcode/Smiley001.nc",
+         "Colt.tap": "pygcode/Colt.tap",
+         "sub/flowsnake.ngc": "linuxcnc/interp-tests/flowsnake/flowsnake.ngc"}
+
+
+@pytest.fixture
+def small_folder(tmp_path, monkeypatch):
+    monkeypatch.setattr("ncopt.profiles.user_file", lambda: tmp_path / "user" / "ncopt.toml")
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    monkeypatch.chdir(cwd)
+    src = tmp_path / "in"
+    for name, rel in SMALL.items():
+        (src / name).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(CORPUS / rel, src / name)
+    return src
+
+
+def test_in_place_keeps_a_backup_and_replaces_atomically(small_folder, tmp_path):
+    src = small_folder
+    ok = [src / "Clamp.nc", src / "sub" / "flowsnake.ngc"]
+    unchanged, failed = src / "Smiley001.nc", src / "Colt.tap"
+    original = {p: p.read_bytes() for p in src.rglob("*") if p.is_file()}
+    inode = {p: p.stat().st_ino for p in original}
+    report = tmp_path / "report.json"
+    result = invoke(["batch", src, *OPTIONS, "--in-place", "--report", report, "--jobs", "2"])
+    assert result.exit_code == Exit.SOME_FAILED, result.stderr
+    status = {Path(e["source"]).name: e["status"] for e in json.loads(report.read_text())}
+    assert status == {"Clamp.nc": "ok", "flowsnake.ngc": "ok", "Smiley001.nc": "unchanged",
+                      "Colt.tap": "failed"}
+    for p in ok:
+        backup = p.with_name(p.name + ".bak")
+        assert backup.read_bytes() == original[p]
+        assert backup.stat().st_ino == inode[p]  # the original file itself, renamed away
+        assert p.stat().st_ino != inode[p]  # a new file renamed over it, never rewritten in place
+        text = p.read_bytes().decode("latin-1")
+        plain = without_stamp(original[p].decode("latin-1"), text)
+        assert masked(parse_text(plain)) == masked(parse_text(original[p].decode("latin-1")))
+    for p in (unchanged, failed):
+        assert p.read_bytes() == original[p] and p.stat().st_ino == inode[p]
+        assert not p.with_name(p.name + ".bak").exists()
+    assert not [p for p in tmp_path.rglob("*") if p.name.endswith(TMP_SUFFIX)]
+    names = sorted(str(p.relative_to(src)) for p in src.rglob("*") if p.is_file())
+    assert names == ["Clamp.nc", "Clamp.nc.bak", "Colt.tap", "Smiley001.nc", "sub/flowsnake.ngc",
+                     "sub/flowsnake.ngc.bak"]
+
+    # again: a stamped program plans from its stamp and comes out the same; the backup
+    # still holds the very original
+    first = {p: p.read_bytes() for p in ok}
+    again = invoke(["batch", src, *OPTIONS, "--in-place", "--jobs", "2"])
+    assert again.exit_code == Exit.SOME_FAILED, again.stderr
+    for p in ok:
+        assert p.read_bytes() == first[p]
+        assert p.with_name(p.name + ".bak").read_bytes() == original[p]
+
+
+def test_in_place_on_a_new_version_keeps_that_version(small_folder):
+    """After a first --in-place run, the CAM writes a new Clamp.nc; a second --in-place run
+    rewrites it, but the existing Clamp.nc.bak (the old version) is kept as it is and the
+    new original is lost: nothing in the folder holds its bytes any more."""
+    src = small_folder
+    clamp = src / "Clamp.nc"
+    assert invoke(["batch", src, *OPTIONS, "--in-place"]).exit_code == Exit.SOME_FAILED
+    new_version = b"(revision 2)\n" + (CORPUS / "pygcode" / "Clamp.nc").read_bytes()
+    assert new_version != (CORPUS / "pygcode" / "Clamp.nc").read_bytes()
+    clamp.unlink()
+    clamp.write_bytes(new_version)
+    assert invoke(["batch", src, *OPTIONS, "--in-place"]).exit_code == Exit.SOME_FAILED
+    assert clamp.read_bytes() != new_version  # rewritten
+    kept = [p for p in src.rglob("*") if p.is_file() and p.read_bytes() == new_version]
+    assert kept, "the original of the second run is gone"
+
+
+def test_output_folder_and_in_place_together_are_refused(small_folder, tmp_path):
+    src = small_folder
+    before = snapshot(tmp_path)
+    out = tmp_path / "out"
+    result = invoke(["batch", src, *OPTIONS, "-o", out, "--in-place"])
+    assert result.exit_code == Exit.USAGE
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1
+    assert lines[0].removeprefix("<input>: ") == "give either -o OUTDIR or --in-place, not both"
+    assert not out.exists() and snapshot(tmp_path) == before
+
+
+def test_no_output_folder_is_refused(small_folder, tmp_path):
+    before = snapshot(tmp_path)
+    result = invoke(["batch", small_folder, *OPTIONS])
+    assert result.exit_code == Exit.USAGE
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].removeprefix("<input>: ") == (
+        "give an output folder with -o, or --in-place to replace the originals")
+    assert snapshot(tmp_path) == before
+
+
+def test_nothing_to_do(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    result = invoke(["batch", empty, *OPTIONS, "-o", tmp_path / "out"])
+    assert result.exit_code == Exit.NOTHING_DONE
+    assert result.stderr == f"ncopt: no NC programs found in {empty}\n"
+    assert not (tmp_path / "out").exists()
+    # no program among the files (a mesh, notes, a hidden file)
+    (empty / "part.stl").write_bytes(b"solid x\nendsolid x\n")
+    (empty / "notes.md").write_text("# notes\n")
+    (empty / ".hidden.nc").write_text("G1 X1\n")
+    result = invoke(["batch", empty, *OPTIONS, "-o", tmp_path / "out"])
+    assert result.exit_code == Exit.NOTHING_DONE
+    assert not (tmp_path / "out").exists()
+    # every file failed
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "unclosed.ngc").write_bytes(BROKEN["broken/unclosed.ngc"])
+    (bad / "random.nc").write_bytes(BROKEN["broken/random.nc"])
+    report = tmp_path / "report.json"
+    result = invoke(["batch", bad, *OPTIONS, "-o", tmp_path / "out", "--report", report])
+    assert result.exit_code == Exit.NOTHING_DONE
+    assert [e["status"] for e in json.loads(report.read_text())] == ["failed", "failed"]
+    assert not [p for p in (tmp_path / "out").rglob("*") if p.is_file()]
+
+
+def test_a_symlink_out_of_the_folder_does_not_stop_the_batch(tmp_path, monkeypatch):
+    """A program linked from elsewhere (in/link.nc -> ../other/x.nc): today the whole batch
+    stops with a ValueError traceback (exit 1) before any file is done."""
+    monkeypatch.chdir(tmp_path)
+    src, other, out = tmp_path / "in", tmp_path / "other", tmp_path / "out"
+    src.mkdir()
+    other.mkdir()
+    shutil.copyfile(CORPUS / "pygcode" / "Clamp.nc", other / "x.nc")
+    shutil.copyfile(CORPUS / "pygcode" / "Clamp.nc", src / "real.nc")
+    (src / "link.nc").symlink_to(Path("..") / "other" / "x.nc")
+    before = sha(other / "x.nc")
+    result = invoke(["batch", src, *OPTIONS, "-o", out])
+    assert result.exit_code in (Exit.OK, Exit.SOME_FAILED), result.stderr
+    assert (out / "real.nc").is_file()
+    assert sha(other / "x.nc") == before and sorted(os.listdir(other)) == ["x.nc"]
+    assert all(p.resolve().is_relative_to(out.resolve()) for p in out.rglob("*"))
+
+
+# ---------------------------------------------------------------- interrupted ----
+COPIES = 12
+
+
+@pytest.mark.parametrize("signame, to_group", [("SIGINT", True), ("SIGTERM", False)],
+                         ids=["ctrl-c", "sigterm"])
+def test_an_interrupted_batch_leaves_no_partial_file(tmp_path, signame, to_group):
+    src, out = tmp_path / "in", tmp_path / "out"
+    src.mkdir()
+    data = BOWL_MPF.read_bytes()
+    last_line = data.rstrip(b"\r\n").rsplit(b"\n", 1)[-1]
+    for i in range(COPIES):
+        (src / f"bowl_{i:02d}.mpf").write_bytes(data)
+    cmd = [sys.executable, "-c", "from ncopt.cli import main; main()", "batch", str(src),
+           "--accel", "227", "--max-rpm", "15000", "-o", str(out), "--jobs", "2"]
+    env = {**os.environ, "NO_COLOR": "1", "TERM": "dumb", "COLUMNS": "100",
+           "XDG_CONFIG_HOME": str(tmp_path / "config")}
+    proc = subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, start_new_session=True)
+    try:
+        # about a second in, once the batch is under way (a first file is complete)
+        t0 = time.monotonic()
+        while proc.poll() is None and time.monotonic() - t0 < 60:
+            done = [p for p in out.glob("*.mpf")] if out.is_dir() else []
+            if time.monotonic() - t0 >= 1.0 and done:
+                break
+            time.sleep(0.02)
+        assert proc.poll() is None, "the batch ended before it could be interrupted"
+        sig = getattr(signal, signame)
+        os.killpg(proc.pid, sig) if to_group else proc.send_signal(sig)
+        stdout, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == Exit.INTERRUPTED, stderr.decode(errors="replace")[-3000:]
+    assert stderr.decode().splitlines()[-1] == (
+        "ncopt: interrupted; finished files are complete, no partial file was left")
+    assert not [p for p in tmp_path.rglob("*") if p.name.endswith(TMP_SUFFIX)]
+    outputs = sorted(p for p in out.rglob("*") if p.is_file())
+    assert 1 <= len(outputs) < COPIES  # some were complete, the rest never started or stopped
+    assert {p.name for p in outputs} <= {f"bowl_{i:02d}.mpf" for i in range(COPIES)}
+    first = outputs[0].read_bytes()
+    for p in outputs:  # every output is whole: the same rewrite of the same program
+        text = p.read_bytes()
+        assert text.rstrip(b"\r\n").endswith(last_line)
+        parse_text(text.decode("latin-1"), str(p))
+        assert text == first
+    for p in src.iterdir():
+        assert p.read_bytes() == data
+    # the workers are gone too
+    if Path("/proc").is_dir():
+        time.sleep(0.2)
+        left = []
+        for d in Path("/proc").iterdir():
+            try:
+                if d.name.isdigit() and str(src).encode() in (d / "cmdline").read_bytes():
+                    left.append(d.name)
+            except OSError:
+                pass
+        assert not left, f"worker processes still running: {left}"
