@@ -518,7 +518,7 @@ def _arc_points(prog, lines, modal, i, p0, p1, tol_mm):
     has_ijk = any(lines.present(k)[i] for k in "IJK")
     cw = modal.motion[i] == 20
     if lines.present("R")[i] and not has_ijk:
-        center = _center_from_r(prog, i, p0, p1, lines.value("R")[i] * scale, cw, a, b)
+        center = _center_from_r(prog, i, modal, p0, p1, lines.value("R")[i] * scale, cw, a, b)
     elif has_ijk:
         center = off.copy() if modal.arc_absolute[i] else p0 + off
     else:
@@ -554,15 +554,19 @@ def _arc_points(prog, lines, modal, i, p0, p1, tol_mm):
     return pts, np.full(n, length)
 
 
-def _center_from_r(prog, i, p0, p1, radius, cw, a, b):
+def _center_from_r(prog, i, modal, p0, p1, radius, cw, a, b):
     du, dv = p1[a] - p0[a], p1[b] - p0[b]
     chord = math.hypot(du, dv)
     if chord < 1e-12:
         _fail(prog, i, "R-format arc with identical start and end point; use I/J/K")
     r = abs(radius)
-    if chord > 2 * r + 1e-6:
+    # a half circle whose printed end point is a hair too far: within the tolerance the
+    # LinuxCNC interpreter allows center-format arcs (2 sqrt2 x 0.01 mm / 0.001 inch)
+    t_abs = 2 * math.sqrt(2) * (0.001 * MM_PER_INCH if modal.inch[i] else 0.01)
+    if chord > 2 * r + t_abs:
         _fail(prog, i, f"arc radius {r:.4f} mm is too small for the chord {chord:.4f} mm; "
               "correct R or the end point")
+    r = max(r, chord / 2)
     h = math.sqrt(max(r * r - chord * chord / 4, 0.0))
     # the centre lies left of the chord for CCW short arcs; R < 0 asks for the long arc
     sign = (1 if not cw else -1) * (1 if radius > 0 else -1)
