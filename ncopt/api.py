@@ -242,7 +242,12 @@ def _plan_tool(tp, idx, job, mesh_index, tool, cutter, source, selected, path) -
         idx, tp.seg_len_mm, tp.motion, tp.feed_mm_min, tp.known,
         tp.spindle_on & in_section, tp.spindle_rpm, req, c.cutting, sampled.point, selected,
         job.machine.rapid_mm_min)
-    emitted, f_mm, _ = planner.plan(blocks, job.machine, cut, cutter.teeth, job.options)
+    try:
+        emitted, f_mm, _ = planner.plan(blocks, job.machine, cut, cutter.teeth, job.options)
+    except PlanningError as exc:
+        if exc.path is None:
+            raise PlanningError(exc.message, path) from None
+        raise
     return ToolPlan(tool, cutter, cut, source, blocks, emitted.s_cmd_rpm, f_mm, sampled,
                     emitted.close_s_words, _over_target(blocks, emitted, job, cut, cutter))
 
@@ -292,11 +297,13 @@ def _targets(tp, idx, plans, f_style) -> Targets:
     feed_move = tp.motion[fp] != Motion.RAPID
     s_value = tp.spindle_rpm[fp].astype(np.float64)
     f_value = np.where(feed_move, tp.feed_mm_min[fp] / unit, np.nan)
+    s_value[~(s_value > 0)] = np.nan  # no S in force: nothing to restore (never write S0)
     scale = 10.0 ** f_style.decimals
     for p in plans:
         s_value = np.where(p.blocks.planned, p.s_cmd_rpm, s_value)
         planned_f = np.floor(p.f_mm_min / unit * scale + 1e-9) / scale  # never above fz
         f_value = np.where(p.blocks.cutting, planned_f, f_value)
+    f_value[~(f_value > 0)] = np.nan  # never F0 or below (controls reject it)
     return Targets(line=idx.line, s_value=s_value, f_value=f_value)
 
 
@@ -338,7 +345,7 @@ def _summary(prog, tp, idx, plans, skipped, edits, mesh_edge) -> Summary:
     for p in plans:
         c = p.blocks.cutting
         before += float(np.sum(p.blocks.length_mm[c] / f_orig[c]))
-        after += float(np.sum(p.blocks.length_mm[c] / p.f_mm_min[c]))
+        after += float(np.sum(p.blocks.length_mm[c] / np.maximum(p.f_mm_min[c], 1e-9)))
         cutting_blocks += int(c.sum())
         planned_blocks += int(p.blocks.planned.sum())
     letters = "".join(_edited_letters(prog.text, e) for e in edits)

@@ -17,7 +17,8 @@ DIALECTS = (SINUMERIK, FANUC, HEIDENHAIN, LINUXCNC, GRBL, GENERIC)
 _MARKS = {
     SINUMERIK: [r"^%_N_\w+_(?:MPF|SPF)", r"\bCYCLE8\d\d\s*\(", r"\bG64[12]\b", r"\bT\s*=\s*\"",
                 r"^\s*(?:N\d+\s*)?DEF\s+(?:REAL|INT|BOOL)", r"\bTRAORI\b|\bTRAFOOF\b",
-                r"\bMSG\s*\(", r"^\s*(?:N\d+\s*)?R\d+\s*=", r"\bS1\s*=", r"^\s*;"],
+                r"\bMSG\s*\(", r"^\s*(?:N\d+\s*)?R\d+\s*=", r"\bS1\s*=",
+                r"^\s*(?:N\d+\s+)?T\d+\s+D\d+\s*$"],
     FANUC: [r"^\s*O\d{3,5}\b", r"\bG43\s*H\d+|\bG43\s*Z[-\d.]+\s*H\d+", r"\bG28\s*G91|\bG91\s*G28",
             r"\bG0?5\.1\b", r"^\s*#\d+\s*=", r"\bIF\s*\[.*\]\s*GOTO", r"\bM98\s*P", r"\bG65\s*P"],
     LINUXCNC: [r"^\s*[oO]\s*(?:\d+|<[^>]+>)\s+(?:sub|call|if|while|do|repeat)\b",

@@ -64,7 +64,10 @@ def interpret(prog: Program, start: StartState = StartState()) -> Toolpath:
     Toolpath
         One row per CL point; arcs split within ``start.chord_tol_mm``.
     """
-    values, poisoned, warnings = _evaluate(prog)
+    skip = None
+    if prog.line_exprs:  # subroutine bodies and lines after M2/M30 are not evaluated
+        skip = ~_executed_lines(prog, _LineTable(prog, prog.word_value), [])
+    values, poisoned, warnings = _evaluate(prog, skip)
     lines = _LineTable(prog, values)
     executed = _executed_lines(prog, lines, warnings)
     _check_semantics(prog, lines, executed)
@@ -141,7 +144,7 @@ def ffill(values: np.ndarray, initial: float = np.nan) -> np.ndarray:
     return out
 
 
-def _evaluate(prog: Program):
+def _evaluate(prog: Program, skip: np.ndarray | None = None):
     """Evaluate expression words and assignments in program order.
 
     Returns word values (n_words,) with expressions filled in (NaN where
@@ -156,6 +159,8 @@ def _evaluate(prog: Program):
     params = Params()
     events = sorted(set(prog.line_exprs) | set(prog.opaque_reason))
     for i in events:
+        if skip is not None and skip[i]:
+            continue
         if i in prog.opaque_reason:
             if prog.opaque_reason[i].upper() in FLOW_CONTROL or _is_oword(prog, i):
                 params.values.clear()  # flow we do not follow: nothing known stays known
@@ -560,10 +565,9 @@ def _center_from_r(prog, i, modal, p0, p1, radius, cw, a, b):
     if chord < 1e-12:
         _fail(prog, i, "R-format arc with identical start and end point; use I/J/K")
     r = abs(radius)
-    # a half circle whose printed end point is a hair too far: within the tolerance the
-    # LinuxCNC interpreter allows center-format arcs (2 sqrt2 x 0.01 mm / 0.001 inch)
-    t_abs = 2 * math.sqrt(2) * (0.001 * MM_PER_INCH if modal.inch[i] else 0.01)
-    if chord > 2 * r + t_abs:
+    # a half circle whose printed end point is a hair too far: the LinuxCNC interpreter
+    # allows the half chord to exceed R by 0.0001 inch (its TOLERANCE_EQUAL)
+    if chord / 2 > r + 0.0001 * MM_PER_INCH:
         _fail(prog, i, f"arc radius {r:.4f} mm is too small for the chord {chord:.4f} mm; "
               "correct R or the end point")
     r = max(r, chord / 2)

@@ -372,7 +372,9 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
         target = _snap(target)
         if fixed[b]:
             cur = fixed_rpm[b]
-        elif cur is None or starts[b]:  # a spindle start: the control brings it to speed
+            if not cur > 0:  # the program runs this block with no S in force
+                real = None
+        elif cur is None or starts[b] or not cur > 0:  # a (re)start: the control brings it up
             cur = real = float(max(math.floor(target), lo_int))
         elif real == cur and cur <= target < cur + step:  # holding steady: nothing to do
             pass

@@ -134,7 +134,7 @@ def _replace_words(prog, code, line, values, style) -> list[Edit]:
     ok = nxt < c_line.shape[0]
     words, new = words[ok], c_val[nxt[ok]]
     old = prog.word_value[words]
-    change = ~_same_formatted(old, new, style)  # NaN (an expression) always changes
+    change = ~_says_exactly(old, new, style)  # NaN (an expression) always changes
     words, new, old = words[change], new[change], old[change]
     # an expression value ([#<fscale>*225], #1) is replaced whole, after the letter
     start = np.where(np.isnan(old), prog.word_start[words] + 1, prog.word_num_start[words])
@@ -166,11 +166,25 @@ def _append_words(prog, code, line, values, style):
     has = last >= 0
     between = has & (w_line[np.maximum(last, 0)] > prev_line)
     opaque_between = between & w_opaque[np.maximum(last, 0)]
-    in_force = np.concatenate(([np.nan], c_val[:-1]))
-    in_force = np.where(opaque_between, w_val[np.maximum(last, 0)], in_force)
+    previous = np.concatenate(([np.nan], c_val[:-1]))  # a target, written by the style
+    opaque_val = w_val[np.maximum(last, 0)]  # a word left as the program has it
     settled = own | (between & ~opaque_between)
-    need = ~settled & ~_same_formatted(c_val, in_force, style)
+    same = np.where(opaque_between, _says_exactly(opaque_val, c_val, style),
+                    _same_formatted(c_val, previous, style))
+    need = ~settled & ~same
     return c_line[need], style.format_all(c_val[need])
+
+
+def _says_exactly(old: np.ndarray, new: np.ndarray, style: WordStyle) -> np.ndarray:
+    """Does a word worth ``old`` already say ``new`` as the style would write it?
+    (F60.1 does not say F60, even where the program writes F without decimals.)"""
+    scale = 10.0 ** style.decimals
+    written = np.round(new * scale) / scale
+    with np.errstate(invalid="ignore"):
+        tol = 1e-9 * np.maximum(np.abs(written), 1.0)
+        # the program's own value kept as the target (F333.3 in an F-without-decimals
+        # post) is already right as it stands
+        return (np.abs(old - written) <= tol) | (np.abs(old - new) <= tol)
 
 
 def _same_formatted(a: np.ndarray, b: np.ndarray, style: WordStyle) -> np.ndarray:

@@ -201,7 +201,10 @@ def test_outputs_mirror_the_inputs(corpus_run):
         text, base = data.decode("latin-1"), original.decode("latin-1")
         plain = without_stamp(base, text)
         assert masked(parse_text(plain)) == masked(parse_text(base)), e
-        assert e["s_words"] + e["f_words"] > 0 and e["blocks"] > 0, e
+        # S/F rewritten, unless the program already runs as fast as the machine allows
+        # (camotics/bear.nc: S15000 on a 15000 RPM spindle), when only the stamp is added
+        gained = e["time_after_min"] < e["time_before_min"] * (1 - 1e-9)
+        assert e["blocks"] > 0 and (not gained or e["s_words"] + e["f_words"] > 0), e
     assert set(snapshot(out)) == expected  # nothing else in OUT
 
 
