@@ -49,6 +49,7 @@ class Job:
     options: PlanOptions = PlanOptions()
     tool: int | None = None
     control: str | None = None  # None: detected from the program's dialect
+    control_from: str = "given"  # where a set control came from (the options, a profile)
     tool_library: dict = field(default_factory=dict)  # T number -> Cutter (profiles)
     teeth: int = 2
     method: Method = Method()  # contact point (default) or remaining material
@@ -164,7 +165,7 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     summary = _summary(prog, tp, idx, plans, skipped, edits, mesh_edge)
     found = detect(text)
     control = job.control or found.name
-    source = "given" if job.control else (
+    source = job.control_from if job.control else (
         f"detected from {len(found.marks)} mark{'s' if len(found.marks) > 1 else ''}"
         if found.marks else "no marks: generic")
     summary = replace(summary, control=control, control_source=source,

@@ -133,6 +133,7 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
         getattr(m, attr) if m is not None else default)
     accel, max_rpm = pick(accel, "accel_rad_s2", None), pick(max_rpm, "max_rpm", None)
     min_rpm, max_feed = pick(min_rpm, "min_rpm", 0.0), pick(max_feed, "max_feed_mm_min", float("inf"))
+    control_from = "given" if control is not None else f"machine profile {name}"
     rapid, control = pick(rapid, "rapid_mm_min", 10000.0), pick(control, "control", None)
     min_s_interval_ms = pick(min_s_interval_ms, "min_s_interval_ms", 0.0)
     if cutter is not None:
@@ -185,7 +186,7 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
                options=PlanOptions(planner=planner, min_rpm_step=min_rpm_step,
                                    fz_tolerance=fz_band / 100.0, fz_policy=fz_policy,
                                    min_s_interval_ms=min_s_interval_ms),
-               tool=tool, teeth=teeth, control=control,
+               tool=tool, teeth=teeth, control=control, control_from=control_from,
                method=Method(method, ap, allowance_along),
                tool_library={k: c for k, (c, _) in profiles.tools.items() if isinstance(k, int)})
 
