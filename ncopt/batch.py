@@ -71,9 +71,11 @@ def target_for(src: Path, base: Path, out_dir: Path | None, in_place: bool) -> P
     return target
 
 
-def write_atomic(target: Path, data: bytes, backup_suffix: str | None = None) -> None:
+def write_atomic(target: Path, data: bytes, backup_suffix: str | None = None,
+                 make_parents: bool = True) -> None:
     """Write via a temporary file in the same folder and a rename (never half-written)."""
-    target.parent.mkdir(parents=True, exist_ok=True)
+    if make_parents:
+        target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=TMP_SUFFIX, dir=target.parent)
     try:
         with os.fdopen(fd, "wb") as handle:

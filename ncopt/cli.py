@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import os
 import sys
-import tempfile
 from dataclasses import replace
 from enum import IntEnum
 from pathlib import Path
@@ -214,12 +213,10 @@ def _write(output: Optional[str], data: bytes, input: str) -> None:
     if input != "-" and target.exists() and target.resolve() == Path(input).resolve():
         raise UsageError("the output would overwrite the input; write to another file "
                          "(or use ncopt batch --in-place, which keeps a backup)", output)
+    from .batch import write_atomic
+
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".ncopt-tmp",
-                                   dir=str(target.parent))
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-        os.replace(tmp, target)
+        write_atomic(target, data, make_parents=False)  # a missing folder is the user's to make
     except OSError as exc:
         raise _IoError(f"cannot write the output: {exc.strerror}", output) from None
 

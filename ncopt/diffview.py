@@ -30,10 +30,6 @@ class DiffTotals:
     f_changed: int
 
 
-def _split(data: bytes) -> list[str]:
-    return data.decode("latin-1").splitlines()
-
-
 def changed_words(a: str, b: str) -> tuple[list[tuple[str, bool]], list[tuple[str, bool]]]:
     """Tokens of two lines, each flagged when it differs from the other line."""
     ta, tb = _TOKEN.findall(a), _TOKEN.findall(b)

@@ -451,7 +451,7 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings) 
         pts, lengths = _arc_points(prog, lines, modal, i, prev_pt[j], end[j], start.chord_tol_mm)
         pieces[j] = (pts, lengths)
         counts[j] = pts.shape[0]
-    _check_feed(prog, lines, modal, move_lines, is_lin, is_arc)
+    _check_feed(prog, modal, move_lines)
     n_pts = int(counts.sum()) + 1
     xyz = np.zeros((n_pts, 3))
     rows = np.concatenate(([0], np.cumsum(counts)))  # first row of each move, minus 1
@@ -485,7 +485,7 @@ def mcode_is_feed(motion_x10: np.ndarray) -> np.ndarray:
     return np.isin(motion_x10, [10, 20, 30])
 
 
-def _check_feed(prog, lines, modal, move_lines, is_lin, is_arc) -> None:
+def _check_feed(prog, modal, move_lines) -> None:
     feed_moves = move_lines[np.isin(modal.motion[move_lines], [10, 20, 30])]
     bad = feed_moves[(np.nan_to_num(modal.feed[feed_moves], nan=0.0) <= 0)
                      & (modal.feed_mode[feed_moves] == 940)]

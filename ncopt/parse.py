@@ -43,13 +43,6 @@ def parser() -> Lark:
 
 
 @lru_cache(maxsize=None)
-def expr_parser() -> Lark:
-    """A parser for a bare expression (the right side of an address assignment)."""
-    return Lark(grammar_path().read_text(encoding="utf-8"), parser="lalr", start="expr",
-                propagate_positions=True, maybe_placeholders=False)
-
-
-@lru_cache(maxsize=None)
 def byte_classes() -> np.ndarray:
     """(256,) int8 class of every byte, derived from the grammar's terminals."""
     terms = {t.name: re.compile(t.pattern.to_regexp()) for t in parser().terminals}

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import PlanningError
+from .interp import ffill
 from .model import CuttingData, Machine, PlanOptions
 
 MAX_ITERATIONS = 200
@@ -134,7 +135,7 @@ def caps(blocks: Blocks, s_lo: float, s_hi: float, lookahead: bool) -> np.ndarra
         cap = np.where(blocks.cutting, np.fmin(cap, nxt), cap)
     # non-cutting blocks head for the next cut's speed (then the last one's)
     cap = _bfill(cap)
-    cap = _ffill(cap, s_hi)
+    cap = ffill(cap, s_hi)
     fixed = ~blocks.planned
     cap[fixed] = np.clip(blocks.fixed_rpm[fixed], 0.0, None)
     return cap
@@ -308,15 +309,8 @@ def _segment_running_min(v: np.ndarray, seg: np.ndarray, reverse: bool) -> np.nd
     return np.minimum.accumulate(v + off) - off
 
 
-def _ffill(a: np.ndarray, initial: float) -> np.ndarray:
-    ok = ~np.isnan(a)
-    idx = np.where(ok, np.arange(a.shape[0]), -1)
-    np.maximum.accumulate(idx, out=idx)
-    return np.where(idx >= 0, a[np.maximum(idx, 0)], initial)
-
-
 def _bfill(a: np.ndarray) -> np.ndarray:
-    return _ffill(a[::-1], np.nan)[::-1]
+    return ffill(a[::-1])[::-1]
 
 
 @dataclass(frozen=True)
