@@ -5,7 +5,7 @@
     python bench/bench_geometry.py bullnose  # bull-nose clearance vs brute force
 
 ``speed`` prints seconds for: building a grid mesh, writing and loading it as
-a binary STL, the AABB tree, the MeshIndex (tree + normals + sharp edges),
+a binary STL, the closest-point BVH, the MeshIndex (tree + normals + sharp edges),
 closest-point queries serial vs forked pool, the full contact search, and the
 peak resident memory of this process and of its pool children.
 
@@ -270,7 +270,6 @@ def write_stl(mesh: geometry.Mesh, path: Path) -> None:
 
 
 def run_speed(n_tri: int, n_points: int) -> None:
-    import igl
 
     R, size = 4.0, 200.0
     mesh = timed(f"grid mesh, {n_tri:,} triangles", build_grid_mesh, n_tri, size)
@@ -280,8 +279,7 @@ def run_speed(n_tri: int, n_points: int) -> None:
         timed("write binary STL (numpy-stl)", write_stl, mesh, path)
         loaded = timed("load_stl (read + merge vertices)", geometry.load_stl, path)
     print(f"  loaded {loaded.n_faces:,} triangles, {loaded.V.shape[0]:,} vertices")
-    tree = igl.AABB()
-    timed("igl.AABB init alone", tree.init, loaded.V, loaded.F)
+    timed("fcpw BVH build alone", geometry._closest_point_scene, loaded)
     index = timed("MeshIndex (tree + corner normals + edges)", geometry.MeshIndex, loaded)
     centres = timed(f"{n_points:,} path-ordered centres", path_centres, n_points, size, R)
     cutter = Cutter(2 * R, 2)

@@ -64,7 +64,7 @@ GENERATOR_SOURCES = (ROOT / "bench" / "make_case.py", ROOT / "samples" / "make_b
 HOOKS = (
     ("api.rewrite_file", "ncopt.api:rewrite_file"),
     ("mesh load: STL read", "ncopt.geometry:load_stl"),
-    ("mesh load: AABB tree + normals", "ncopt.geometry:MeshIndex.__init__"),
+    ("mesh load: BVH + normals", "ncopt.geometry:MeshIndex.__init__"),
     ("parse", "ncopt.parse:parse_text"),
     ("interpret", "ncopt.interp:interpret"),
     ("block index", "ncopt.planner:block_index"),
