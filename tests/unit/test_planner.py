@@ -301,3 +301,27 @@ def test_a_cut_after_an_unplanned_block_is_not_planned_faster_than_reachable():
     profile, cmd, low, high = emit(b, PlanOptions(), machine=slow)
     assert profile.s_rpm[0] == pytest.approx(3000.0)  # what the block really runs at
     assert np.all(cmd[1:] <= profile.s_rpm[1:] + 1.0)
+
+
+def test_no_s_word_above_the_feed_limited_top_after_a_faster_unplanned_block():
+    """The program keeps 12000 RPM in a block ncopt leaves alone; the cuts after it need
+    9000 RPM, but F is limited to 1000 mm/min, so fz 0.1 x 2 teeth caps S at 5000.  The
+    profile follows the spindle falling from 12000; the S words must still ask for no
+    more than 5000 (the spindle then falls as fast as it can, as the profile assumes)."""
+    n = 8
+    b = planner.Blocks(length_mm=np.full(n, 0.5), req_rpm=np.array([np.inf] + [9000.0] * (n - 1)),
+                       cutting=np.array([False] + [True] * (n - 1)),
+                       planned=np.array([False] + [True] * (n - 1)), time_s=np.full(n, 0.1),
+                       fixed_rpm=np.full(n, 12000.0))
+    machine = Machine(accel_rad_s2=A_RPM_S * 2 * math.pi / 60, max_rpm=12000.0,
+                      max_feed_mm_min=1000.0)
+    s_lo, s_hi = planner.speed_limits(machine, CUT, TEETH)
+    assert s_hi == pytest.approx(5000.0)
+    profile = planner.lookahead(b, machine, CUT, TEETH, LOOSE)
+    assert profile.s_rpm[1] > 5500.0  # still falling from the program's 12000
+    incs = planner.increments(b, machine, profile.k_rpm2_per_mm)
+    uncapped = planner.emit_rpm(profile, b, incs, LOOSE, s_lo, 3.0)
+    assert uncapped.s_cmd_rpm[1] > s_hi  # what the emission did without the limit
+    em = planner.emit_rpm(profile, b, incs, LOOSE, s_lo, 3.0, s_hi=s_hi)
+    assert np.all(em.s_cmd_rpm[1:] <= 5000.0)
+    assert np.all(em.s_high_rpm[1:] <= profile.s_rpm[:-1] + 1.0)  # the real speed falls
