@@ -159,7 +159,7 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     targets = _targets(tp, idx, plans, f_style)
     edits = plan_edits(prog, targets, s_style, f_style)
     stamp = stamp_edit(prog, plans) if job.stamp else None
-    out = apply_edits(text, edits + ([stamp] if stamp else []))
+    out = apply_edits(text, edits + ([stamp] if stamp else ()))
     if job.verify:
         verify(prog, tp, out, targets, s_style, f_style)
     summary = _summary(prog, tp, idx, plans, skipped, edits, mesh_edge)
@@ -349,8 +349,7 @@ def _summary(prog, tp, idx, plans, skipped, edits, mesh_edge) -> Summary:
         after += float(np.sum(p.blocks.length_mm[c] / np.maximum(p.f_mm_min[c], 1e-9)))
         cutting_blocks += int(c.sum())
         planned_blocks += int(p.blocks.planned.sum())
-    letters = "".join(_edited_letters(prog.text, e) for e in edits)
-    s_words, f_words = letters.count("S"), letters.count("F")
+    s_words, f_words = edits.s_words, edits.f_words
     first = plans[0]
     summary = Summary(
         blocks=prog.n_lines, moving_blocks=int(fp.shape[0]), cutting_blocks=cutting_blocks,
@@ -373,16 +372,6 @@ def _summary(prog, tp, idx, plans, skipped, edits, mesh_edge) -> Summary:
                           no_cross_points=int(np.sum((est.confidence == NO_CROSS)
                                                      & first.sampled.contacts.cutting)))
     return summary
-
-
-def _edited_letters(text: str, edit) -> str:
-    """The letters of the words an edit writes: appended ones carry their own."""
-    if edit.start == edit.end:  # appended words: " S1500 F300"
-        return "".join(ch for ch in edit.text.upper() if ch in "SF")
-    i = edit.start - 1
-    while i >= 0 and text[i] in " \t":
-        i -= 1
-    return text[i].upper() if i >= 0 else ""
 
 
 def _describe(cutter: Cutter) -> str:

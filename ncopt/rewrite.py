@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import VerificationError
-from .model import Edit, LineKind, Program
+from .model import Edits, LineKind, Program
 
 S_CODE, F_CODE = ord("S"), ord("F")
 
@@ -106,16 +106,15 @@ class Targets:
 
 
 def plan_edits(prog: Program, targets: Targets, s_style: WordStyle,
-               f_style: WordStyle) -> list[Edit]:
+               f_style: WordStyle) -> Edits:
     """Edits that make S and F in force equal the targets, word by word."""
-    edits = []
+    edits = Edits.of()
     appended = {}
     for code, values, style in ((S_CODE, targets.s_value, s_style),
                                 (F_CODE, targets.f_value, f_style)):
         edits += _replace_words(prog, code, targets.line, values, style)
         appended[code] = _append_words(prog, code, targets.line, values, style)
-    edits += _insertions(prog, appended, s_style)
-    return edits
+    return edits + _insertions(prog, appended, s_style)
 
 
 def _consumers(line: np.ndarray, values: np.ndarray):
@@ -123,13 +122,13 @@ def _consumers(line: np.ndarray, values: np.ndarray):
     return line[use], values[use]
 
 
-def _replace_words(prog, code, line, values, style) -> list[Edit]:
+def _replace_words(prog, code, line, values, style) -> Edits:
     """Existing words take the target of the first consumer at or after them."""
     c_line, c_val = _consumers(line, values)
     words = np.flatnonzero(prog.word_letter == code)
     words = words[prog.line_kind[prog.word_line[words]] == LineKind.WORDS]  # opaque: never
     if words.size == 0 or c_line.size == 0:
-        return []
+        return Edits.of()
     nxt = np.searchsorted(c_line, prog.word_line[words], side="left")
     ok = nxt < c_line.shape[0]
     words, new = words[ok], c_val[nxt[ok]]
@@ -138,7 +137,9 @@ def _replace_words(prog, code, line, values, style) -> list[Edit]:
     words, new, old = words[change], new[change], old[change]
     # an expression value ([#<fscale>*225], #1) is replaced whole, after the letter
     start = np.where(np.isnan(old), prog.word_start[words] + 1, prog.word_num_start[words])
-    return list(map(Edit, start.tolist(), prog.word_end[words].tolist(), style.format_all(new)))
+    n = int(words.size)
+    return Edits(start.astype(np.int64), prog.word_end[words].astype(np.int64),
+                 style.format_all(new), n if code == S_CODE else 0, n if code == F_CODE else 0)
 
 
 def _append_words(prog, code, line, values, style):
@@ -194,42 +195,59 @@ def _same_formatted(a: np.ndarray, b: np.ndarray, style: WordStyle) -> np.ndarra
         return (np.round(a * scale) == np.round(b * scale)) & ~np.isnan(a) & ~np.isnan(b)
 
 
-def _insertions(prog, appended: dict, style) -> list[Edit]:
+def _insertions(prog, appended: dict, style) -> Edits:
     """New words go after the last word of their line, S before F unless the post differs.
 
-    ``appended`` maps S_CODE / F_CODE to (lines, formatted values)."""
+    ``appended`` maps S_CODE / F_CODE to (lines, formatted values), lines increasing."""
     (s_lines, s_text), (f_lines, f_text) = appended[S_CODE], appended[F_CODE]
-    lines = np.union1d(s_lines, f_lines).astype(np.int64)
-    if lines.size == 0:
-        return []
+    if len(s_lines) + len(f_lines) == 0:
+        return Edits.of()
+    mark = np.zeros(prog.n_lines + 1, dtype=bool)
+    mark[s_lines] = True
+    mark[f_lines] = True
+    lines = np.flatnonzero(mark)
     sep = style.separator
-    s_part, f_part = [""] * lines.size, [""] * lines.size
-    for pos, t in zip(np.searchsorted(lines, s_lines).tolist(), s_text):
-        s_part[pos] = f"{sep}S{t}"
-    for pos, t in zip(np.searchsorted(lines, f_lines).tolist(), f_text):
-        f_part[pos] = f"{sep}F{t}"
-    texts = [a + b for a, b in zip(s_part, f_part)] if style.s_before_f else \
-        [b + a for a, b in zip(s_part, f_part)]
+    s_part = [f"{sep}S{t}" for t in s_text]
+    f_part = [f"{sep}F{t}" for t in f_text]
+    if len(s_lines) == lines.size and len(f_lines) == lines.size:  # both on every line
+        pairs = zip(s_part, f_part) if style.s_before_f else zip(f_part, s_part)
+        texts = [a + b for a, b in pairs]
+    else:
+        first, second = (s_lines, s_part), (f_lines, f_part)
+        if not style.s_before_f:
+            first, second = second, first
+        texts = [""] * lines.size
+        for part_lines, parts in (first, second):
+            for pos, t in zip(np.searchsorted(lines, part_lines).tolist(), parts):
+                texts[pos] += t
     last_word = np.searchsorted(prog.word_line, lines, side="right") - 1
     on_line = (last_word >= 0) & (prog.word_line[np.maximum(last_word, 0)] == lines)
     at = np.where(on_line, prog.word_end[np.maximum(last_word, 0)], prog.line_start[lines])
-    at = at.tolist()
-    return list(map(Edit, at, at, texts))
+    at = at.astype(np.int64)
+    return Edits(at, at.copy(), texts, len(s_text), len(f_text))
 
 
-def apply_edits(text: str, edits: list[Edit]) -> str:
-    """Splice edits into text (non-overlapping; insertions at one point keep order)."""
-    if not edits:
+def apply_edits(text: str, edits) -> str:
+    """Splice edits (:class:`Edits` or a sequence of :class:`Edit`) into text.
+
+    They may not overlap; insertions at one point keep their order.
+    """
+    if not isinstance(edits, Edits):
+        edits = Edits.of(edits)
+    if len(edits) == 0:
         return text
-    ordered = sorted(edits, key=lambda e: (e.start, e.end))
-    parts, pos = [], 0
-    for e in ordered:
-        if e.start < pos:
-            raise VerificationError(f"overlapping edits at offset {e.start}")
-        parts.append(text[pos:e.start])
-        parts.append(e.text)
-        pos = e.end
-    parts.append(text[pos:])
+    order = np.lexsort((edits.end, edits.start))  # stable: insertions keep their order
+    start, end = edits.start[order], edits.end[order]
+    clash = np.flatnonzero(start[1:] < end[:-1])
+    if clash.size:
+        raise VerificationError(f"overlapping edits at offset {int(start[clash[0] + 1])}")
+    keep_from = np.concatenate(([0], end)).tolist()
+    keep_to = np.concatenate((start, [len(text)])).tolist()
+    new = edits.text
+    parts = [text[keep_from[0]:keep_to[0]]]
+    for i, k in enumerate(order.tolist()):
+        parts.append(new[k])
+        parts.append(text[keep_from[i + 1]:keep_to[i + 1]])
     return "".join(parts)
 
 
@@ -238,13 +256,17 @@ def masked(prog: Program) -> str:
     sel = np.flatnonzero((prog.word_letter == S_CODE) | (prog.word_letter == F_CODE))
     if sel.size == 0:
         return prog.text
-    text = prog.text
-    parts, pos = [], 0
-    for w in sel.tolist():
-        start = int(prog.word_start[w])
-        while start > pos and text[start - 1] in " \t":
-            start -= 1
-        parts.append(text[pos:start])
-        pos = int(prog.word_end[w])
-    parts.append(text[pos:])
-    return "".join(parts)
+    raw = np.frombuffer(prog.text.encode("latin-1"), dtype=np.uint8)
+    start, end = prog.word_start[sel], prog.word_end[sel]
+    # the blanks before a word go with it, back to the previous removed word at most
+    floor = np.concatenate(([0], end[:-1]))
+    back = np.flatnonzero(start > floor)
+    while back.size:
+        back = back[(raw[start[back] - 1] == 32) | (raw[start[back] - 1] == 9)]
+        start[back] -= 1
+        back = back[start[back] > floor[back]]
+    cut = np.zeros(raw.size + 1, dtype=np.int8)  # +1 where a removal starts, -1 where it ends
+    cut[start] = 1
+    cut[end] -= 1  # a removal may start where the previous one ends: the two sum to 0
+    keep = np.cumsum(cut[:-1], dtype=np.int8) == 0
+    return raw[keep].tobytes().decode("latin-1")

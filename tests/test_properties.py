@@ -41,8 +41,8 @@ def test_zero_edits_give_the_input_back(lines, newline, final):
     except NcParseError:
         return
     assert prog.text == text
-    assert plan_edits(prog, Targets(np.zeros(0, int), np.zeros(0), np.zeros(0)),
-                      detect_style(prog, S_CODE), detect_style(prog, F_CODE)) == []
+    assert list(plan_edits(prog, Targets(np.zeros(0, int), np.zeros(0), np.zeros(0)),
+                           detect_style(prog, S_CODE), detect_style(prog, F_CODE))) == []
 
 
 @st.composite
@@ -81,7 +81,7 @@ def test_targets_equal_to_what_is_in_force_need_no_edit(text):
     targets = Targets(lines, in_force(prog, S_CODE), in_force(prog, F_CODE))
     edits = plan_edits(prog, targets, detect_style(prog, S_CODE),
                        detect_style(prog, F_CODE, default_decimals=1))
-    assert edits == []
+    assert list(edits) == []
 
 
 # --------------------------------------- (b) edits on S/F value spans only ----

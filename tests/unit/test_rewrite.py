@@ -6,6 +6,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from ncopt.api import Job, rewrite_text
 from ncopt.errors import VerificationError
@@ -138,6 +140,41 @@ def test_overlapping_edits_raise():
 def test_masked_removes_s_and_f_words_with_their_blanks():
     prog = parse_text("G1 X1 S100\tF200 Y2\nN2S5F6X1\n")
     assert masked(prog) == "G1 X1 Y2\nN2X1\n"
+
+
+def _masked_reference(prog) -> str:
+    """masked() as a plain loop: each S/F word goes, with the blanks just before it."""
+    text, out, pos = prog.text, [], 0
+    for w in np.flatnonzero(np.isin(prog.word_letter, [S_CODE, F_CODE])).tolist():
+        start = int(prog.word_start[w])
+        while start > pos and text[start - 1] in " \t":
+            start -= 1
+        out.append(text[pos:start])
+        pos = int(prog.word_end[w])
+    return "".join(out) + text[pos:]
+
+
+_WORD = st.sampled_from(["S100", "F20.5", "X1", "G1", "s7", "f.5", "(c)", "M3", "N10"])
+_GAP = st.sampled_from(["", " ", "\t", "  ", " \t "])
+
+
+@given(st.lists(st.lists(st.tuples(_GAP, _WORD), max_size=6), min_size=1, max_size=8),
+       st.sampled_from(["\n", "\r\n"]))
+def test_masked_is_the_plain_loop(lines, newline):
+    text = newline.join("".join(g + w for g, w in line) for line in lines) + newline
+    prog = parse_text(text)
+    assert masked(prog) == _masked_reference(prog)
+
+
+def test_edits_count_the_words_they_write():
+    text = "G1 X1 F100\nX2\nS500 M3\nX3\n"
+    prog = parse_text(text)
+    targets = Targets(np.array([0, 1, 3]), np.array([np.nan, 600.0, 700.0]),
+                      np.array([110.0, 120.0, 120.0]))
+    edits = plan_edits(prog, targets, WordStyle(), WordStyle())
+    out = apply_edits(text, edits)
+    assert out == "G1 X1 F110\nX2 S600 F120\nS700 M3\nX3\n"
+    assert (edits.s_words, edits.f_words) == (2, 2)
 
 
 # ------------------------------------------------- the rewrite, end to end ----
