@@ -6,7 +6,7 @@
 
 ``speed`` prints seconds for: building a grid mesh, writing and loading it as
 a binary STL, the closest-point BVH, the MeshIndex (tree + normals + sharp edges),
-closest-point queries serial vs forked pool, the full contact search, and the
+closest-point queries and normals serial vs thread pool, the full contact search, and the
 peak resident memory of this process and of its pool children.
 
 ``normals`` meshes analytic surfaces at several edge lengths (jittered

@@ -22,8 +22,8 @@ Memory per stage is the peak resident set size (RSS) of this process, read from
 ``VmHWM`` in ``/proc/self/status`` after resetting it at the stage's start
 (``echo 5 > /proc/self/clear_refs``): exact for numpy, libigl's C++ allocations and
 Python objects alike, and free.  Where that is unavailable the figures are
-``getrusage`` ``ru_maxrss`` (the process high-water so far).  The contact search may
-fork worker processes; while they run, a sampler thread adds up the proportional set
+``getrusage`` ``ru_maxrss`` (the process high-water so far).  Should a stage fork
+worker processes (none does today: the contacts use threads), a sampler thread adds up the proportional set
 size (PSS) of this process and its workers every 20 ms, so shared copy-on-write pages
 count once.  ``--tracemalloc`` adds the traced Python + numpy peak per stage (not
 libigl, not the workers); it slows the Python loops 7-20 times and its own bookkeeping
@@ -54,7 +54,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-TARGET_SECONDS = 15.0
+TARGET_SECONDS = 15.0  # with the mesh (the rewrite issue)
+TARGET_SECONDS_NO_MESH = 10.0  # without it, normals from the toolpath (the mesh-free issue)
 TARGET_BYTES = 1.5e9
 MB = 1e6  # figures in MB = 10^6 bytes; the 1.5 GB target is 1500 MB
 GENERATOR_SOURCES = (ROOT / "bench" / "make_case.py", ROOT / "samples" / "make_bowl.py")
@@ -73,6 +74,7 @@ HOOKS = (
     ("contacts_for", "ncopt.contacts:contacts_for"),
     ("sampling", "ncopt.contacts:sample_points"),
     ("contacts (mesh)", "ncopt.geometry:contacts_from_mesh"),
+    ("contacts (toolpath normals)", "ncopt.pathnormals:contacts_from_path"),
     ("blocks", "ncopt.planner:blocks_from_contacts"),
     ("planning", "ncopt.planner:plan"),
     ("profile (look-ahead)", "ncopt.planner:lookahead"),
@@ -356,7 +358,7 @@ def _write_atomic(out_path: Path, data: bytes) -> None:
     os.replace(tmp, out_path)
 
 
-def timed_rewrite(mpf: Path, stl: Path, job, out_path: Path, rec: Recorder):
+def timed_rewrite(mpf: Path, stl: Path | None, job, out_path: Path, rec: Recorder):
     """The CLI's steps: read the bytes, api.rewrite_file(data=...), write atomically."""
     from ncopt import api
 
@@ -369,12 +371,13 @@ def timed_rewrite(mpf: Path, stl: Path, job, out_path: Path, rec: Recorder):
 
 
 def end_to_end(mpf: str, stl: str) -> None:
-    """Child mode: import ncopt, run api.rewrite_file once, print figures as JSON."""
+    """Child mode: import ncopt, run api.rewrite_file once, print figures as JSON.
+    ``stl`` "-": without the mesh."""
     t0 = time.perf_counter()
     from ncopt.api import rewrite_file
 
     t1, c1 = time.perf_counter(), Recorder._cpu()
-    result = rewrite_file(mpf, sample_job(), mesh_path=stl)
+    result = rewrite_file(mpf, sample_job(), mesh_path=None if stl == "-" else stl)
     t2, c2 = time.perf_counter(), Recorder._cpu()
     print(json.dumps({
         "import_s": t1 - t0, "rewrite_s": t2 - t1, "cpu_s": c2 - c1, "edits": result.summary.edits,
@@ -383,8 +386,8 @@ def end_to_end(mpf: str, stl: str) -> None:
         "child_peak_rss": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024.0}))
 
 
-def run_end_to_end(mpf: Path, stl: Path) -> dict:
-    cmd = [sys.executable, __file__, "--end-to-end", str(mpf), str(stl)]
+def run_end_to_end(mpf: Path, stl: Path | None) -> dict:
+    cmd = [sys.executable, __file__, "--end-to-end", str(mpf), str(stl) if stl else "-"]
     t0 = time.perf_counter()
     done = subprocess.run(cmd, check=True, capture_output=True, text=True)
     info = json.loads(done.stdout.strip().splitlines()[-1])
@@ -414,7 +417,7 @@ def print_stages(rec: Recorder) -> None:
 
 
 def print_targets(wall_s: float, rec: Recorder, pss: PssSampler, summary, e2e: dict | None,
-                  profiled: bool) -> None:
+                  profiled: bool, target_s: float = TARGET_SECONDS) -> None:
     lines = summary.blocks
     cpu = sum(st.cpu_s for st in rec.stats.values() if st.depth == 0)
     print(f"\nwhole rewrite (read file -> write), wall: {wall_s:.3f} s, cpu {cpu:.3f} s "
@@ -434,8 +437,8 @@ def print_targets(wall_s: float, rec: Recorder, pss: PssSampler, summary, e2e: d
         print("targets: not judged, the profiler inflates every figure")
     else:
         memory = max(rec.peak_rss, pss.peak_kb * 1024.0)
-        print(f"target  whole rewrite <= {TARGET_SECONDS:.0f} s: {wall_s:.3f} s  "
-              f"{_verdict(wall_s <= TARGET_SECONDS)}")
+        print(f"target  whole rewrite <= {target_s:.0f} s: {wall_s:.3f} s  "
+              f"{_verdict(wall_s <= target_s)}")
         print(f"target  peak memory <= {TARGET_BYTES / MB:.0f} MB (larger of the above): "
               f"{memory / MB:.1f} MB  {_verdict(memory <= TARGET_BYTES)}")
     if e2e is not None:
@@ -490,7 +493,8 @@ def _header(args, mpf: Path, stl: Path, import_s: float, rec: Recorder) -> None:
     print(f"load:    {' '.join(f'{x:.2f}' for x in os.getloadavg())} (1/5/15 min load average; "
           "other work on the machine slows the wall times)")
     print(f"program: {mpf} ({mpf.stat().st_size / MB:.1f} MB)")
-    print(f"mesh:    {stl} ({stl.stat().st_size / MB:.1f} MB)")
+    print(f"mesh:    {stl} ({stl.stat().st_size / MB:.1f} MB)" if stl else
+          "mesh:    none (--no-mesh: normals from the toolpath)")
     print("job:     D16 ball, 2 teeth, 227 rad/s^2, 15000 RPM (the README's sample command)")
     print(f"memory:  'peak MB' = {rec.method}; '+MB' = peak - RSS at the stage's first start"
           + ("; 'traced MB' = tracemalloc peak above the start (Python + numpy only)"
@@ -507,6 +511,8 @@ def _arguments(argv) -> argparse.Namespace:
                     help="also trace Python + numpy allocations per stage (slower)")
     ap.add_argument("--profile", action="store_true", help="cProfile every stage")
     ap.add_argument("--top", type=int, default=12, help="functions shown per stage")
+    ap.add_argument("--no-mesh", action="store_true",
+                    help="rewrite without the mesh (normals from the toolpath; target 10 s)")
     ap.add_argument("--no-end-to-end", action="store_true",
                     help="skip the unhooked api.rewrite_file run in a fresh process")
     ap.add_argument("--end-to-end", nargs=2, metavar=("MPF", "STL"), help=argparse.SUPPRESS)
@@ -539,6 +545,8 @@ def main(argv=None) -> int:
         end_to_end(*args.end_to_end)
         return 0
     mpf, stl = case_files(args.out, args.blocks, args.triangles)
+    if args.no_mesh:
+        stl = None
     t0 = time.perf_counter()
     import ncopt.api  # noqa: F401  (lark, libigl, numpy-stl, scipy: what the CLI pays)
 
@@ -551,7 +559,8 @@ def main(argv=None) -> int:
               if not any(st.target == t for st in rec.stats.values())]
     print("hooked, not called: " + (", ".join(unused) or "none"))
     e2e = None if args.no_end_to_end else run_end_to_end(mpf, stl)
-    print_targets(wall, rec, pss, summary, e2e, args.profile)
+    print_targets(wall, rec, pss, summary, e2e, args.profile,
+                  TARGET_SECONDS_NO_MESH if args.no_mesh else TARGET_SECONDS)
     same = e2e is None or e2e["sha256"] == sha
     if e2e is not None:
         print(f"output of the hooked run and of the fresh api.rewrite_file run: "

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import multiprocessing
 
 import numpy as np
 import pytest
@@ -234,8 +233,6 @@ def test_chunks_keep_query_order(sphere_index):
         np.testing.assert_array_equal(a, b)
 
 
-@pytest.mark.skipif("fork" not in multiprocessing.get_all_start_methods(),
-                    reason="the pool needs the fork start method")
 def test_pool_gives_exactly_the_serial_answers(sphere_index):
     centres = 24.0 * directions(1000, seed=4)
     pooled_index = MeshIndex(sphere_index.mesh, pool_min_points=10, chunk_points=64,
