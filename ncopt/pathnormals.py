@@ -20,6 +20,8 @@ it is taken as zero and reported.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -61,6 +63,7 @@ def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarra
     centers_mm : (m, 3) cutter centres in path order, mm
     path_mm : (m,) cumulative path length at each point, mm
     cutting : (m,) bool, points on cutting moves (only these are neighbours)
+    workers : threads for the neighbour search and the fit (-1: every CPU available)
     """
     m = centers_mm.shape[0]
     normal = np.tile([0.0, 0.0, 1.0], (m, 1))
@@ -72,17 +75,27 @@ def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarra
     tangent = _tangents(pts, s)
     tree = cKDTree(pts)
     kk = min(k + 1, idx.size)
-    near = []
-    for a in range(0, idx.size, CHUNK):  # bounded temporaries: (chunk, k, 3) at a time
+
+    def chunk(a: int) -> np.ndarray:  # bounded temporaries: (chunk, k, 3) at a time
         b = min(a + CHUNK, idx.size)
-        dist, nb = tree.query(pts[a:b], k=kk, workers=workers)
+        dist, nb = tree.query(pts[a:b], k=kk, workers=1)
         dist, nb = np.atleast_2d(dist)[:, 1:], np.atleast_2d(nb)[:, 1:]
         other = np.abs(s[nb] - s[a:b, None]) > OTHER_PASS_RATIO * dist + 1e-9
         n, conf, closest = _fit_cross(pts[a:b], tangent[a:b], pts[nb], dist, other)
         normal[idx[a:b]] = n
         confidence[idx[a:b]] = conf
-        near.append(closest)
-    near = np.concatenate(near)
+        return closest
+
+    # each thread queries and fits its own chunks: scipy's query and numpy's loops
+    # release the GIL, so the fit of one chunk overlaps the query of the next
+    threads = len(os.sched_getaffinity(0)) if workers == -1 and hasattr(os, "sched_getaffinity") \
+        else (os.cpu_count() or 1) if workers == -1 else max(int(workers), 1)
+    starts = range(0, idx.size, CHUNK)
+    if threads > 1 and len(starts) > 1:
+        with ThreadPoolExecutor(min(threads, len(starts))) as pool:
+            near = np.concatenate(list(pool.map(chunk, starts)))
+    else:
+        near = np.concatenate([chunk(a) for a in starts])
     stepover = float(np.median(near[np.isfinite(near)])) if np.isfinite(near).any() else float("nan")
     return PathNormals(normal, confidence, stepover)
 
