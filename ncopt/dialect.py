@@ -1,14 +1,26 @@
-"""Which control a program was posted for, from its own marks.
+"""Which control a program was posted for, and what its numbers mean there.
 
 Each dialect has a list of telling marks (regular expressions over the text);
 the one with the most distinct marks wins, ties broken by the order below.
 The result is reported with the marks that decided it, so a user can see why.
+
+The names are also the grammar names of :func:`ncopt.parse.parser`.  On a
+Fanuc control a number without a decimal point can mean least input
+increments (``X1000`` = 1 mm): :func:`decimal_point_issue` finds the words
+whose value depends on it, :func:`apply_decimal_point` reads them in the
+convention the machine uses, :func:`resolve_decimal_point` does both.
 """
 
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import NamedTuple
+
+import numpy as np
+
+from .errors import NcParseError, UsageError
+from .model import Program
 
 SINUMERIK, FANUC, LINUXCNC, GRBL, HEIDENHAIN, GENERIC = (
     "sinumerik", "fanuc", "linuxcnc", "grbl", "heidenhain-iso", "generic")
@@ -47,3 +59,203 @@ def detect(text: str) -> Detected:
         if len(found) > len(best_marks):
             best, best_marks = name, found
     return Detected(best, best_marks)
+
+
+# ------------------------------------------------------ Fanuc decimal point ----
+CALCULATOR, IS_B, IS_C = "calculator", "is-b", "is-c"
+DECIMAL_POINT_CONVENTIONS = (CALCULATOR, IS_B, IS_C)
+"""How a Fanuc control reads an address value written without a decimal point.
+
+``calculator``
+    Calculator-type input (parameter 3401#0 DPI = 1): ``X1000`` is 1000 mm
+    (or inch, or degrees), as LinuxCNC, grbl, Sinumerik and Heidenhain read it.
+``is-b``, ``is-c``
+    Standard input (DPI = 0): the value counts least input increments of the
+    increment system, IS-B (0.001 mm, 0.0001 inch, 0.001 deg) or IS-C
+    (0.0001 mm, 0.00001 inch, 0.0001 deg): ``X1000`` is 1.000 mm under IS-B.
+
+A value written with a decimal point (``X1000.``, ``F279.``) means the same
+in all three, and so does a zero.
+"""
+
+_DECIMAL_ADDRESSES = frozenset(b"XYZUVWIJKQRABCF")  # Fanuc: addresses that take a point
+_ROTARY = frozenset(b"ABC")
+# units per least input increment (metric mm or deg, inch) of each increment
+# system: dividing by an exact integer keeps X1000 -> 1.0 and A90 -> 0.09 exact
+_PER_UNIT = {IS_B: (1000.0, 10000.0), IS_C: (10000.0, 100000.0)}
+
+
+class DecimalPointIssue(NamedTuple):
+    """A word whose value depends on the decimal point convention (1-based line, column)."""
+
+    line: int
+    column: int
+    message: str
+
+
+def decimal_point_issue(program: Program, dialect: str | None,
+                        convention: str | None = None) -> DecimalPointIssue | None:
+    """The first word whose value ncopt cannot know without the decimal point convention.
+
+    Only the Fanuc dialect has the two conventions (see
+    :data:`DECIMAL_POINT_CONVENTIONS`); every other dialect reads values as
+    written.  With ``convention`` given there is no issue: apply it with
+    :func:`apply_decimal_point`.  Otherwise an issue is a non-zero number
+    written without a decimal point at an address that takes one (axes X Y Z
+    U V W A B C, arc and cycle data I J K Q R, dwell X) or an F word whose
+    unit differs between the conventions: in G94 feed per minute F counts
+    1 mm/min in both (F279 is 279 mm/min), but 0.01 inch/min in inch under
+    standard input; in G95 feed per revolution it counts least input
+    increments (0.001 mm/rev under IS-B), in G93 inverse time 0.001 1/min.
+    Words with a computed value (``X#1``, ``X[#1*2]``) are not concerned: a
+    macro variable holds a value with its decimal point.
+
+    Returns
+    -------
+    DecimalPointIssue or None
+        Line and column of the word (1-based, a tab is one column) and a
+        message ``what is wrong; what to do``.
+    """
+    _check_convention(convention)
+    if dialect != FANUC or convention is not None:
+        return None
+    state = _word_state(program)
+    ambiguous = _without_point(program) & (program.word_value != 0.0)
+    f_word = program.word_letter == ord("F")
+    metric_g94 = (state.feed_mode == 94.0) & ~state.inch
+    ambiguous &= ~(f_word & metric_g94)
+    hits = np.flatnonzero(ambiguous)
+    if hits.size == 0:
+        return None
+    k = int(hits[0])
+    line = int(program.word_line[k])
+    column = int(program.word_start[k] - program.line_start[line]) + 1
+    word = program.text[program.word_start[k]:program.word_end[k]]
+    scaled = float(program.word_value[k] / _divisors(program, state, IS_B)[k])
+    unit = _unit(program, state, k)
+    message = (f"`{word}` has no decimal point: a Fanuc control reads it as "
+               f"{program.word_value[k]:g} {unit} with calculator-type input (DPI=1) but "
+               f"{scaled:g} {unit} in least input increments (DPI=0, IS-B); pass "
+               "--decimal-point calculator, is-b or is-c as the machine is set up, or write the "
+               "values with a decimal point")
+    return DecimalPointIssue(line + 1, column, message)
+
+
+def apply_decimal_point(program: Program, convention: str) -> Program:
+    """The program with its values read in a decimal point ``convention``.
+
+    ``calculator`` returns the program unchanged.  ``is-b`` and ``is-c``
+    multiply every number written without a decimal point at an address that
+    takes one by its least input increment, in the program's units: axis,
+    arc and cycle words by 0.001 mm or 0.0001 inch (IS-B), rotary axes A B C
+    by 0.001 deg, dwell X (G4) by 0.001 s, F by 1 mm/min or 0.01 inch/min
+    in G94, 0.001 mm/rev or 0.0001 inch/rev in G95 and 0.001 1/min in G93
+    (IS-C: a tenth of each, except F in G94 and G93).  Units and feed modes
+    are followed from the G20/G21 and G93/G94/G95 words of the program,
+    starting in G21 and G94.  Word spans and text are not changed.
+    """
+    _check_convention(convention)
+    if convention == CALCULATOR:
+        return program
+    state = _word_state(program)
+    divisor = np.where(_without_point(program), _divisors(program, state, convention), 1.0)
+    return replace(program, word_value=program.word_value / divisor)
+
+
+def resolve_decimal_point(program: Program, dialect: str | None,
+                          convention: str | None = None) -> Program:
+    """The program's values as the control reads them, or a located error.
+
+    :func:`decimal_point_issue` then :func:`apply_decimal_point`: for the
+    Fanuc dialect without a ``convention`` and with a word whose value depends
+    on it, raises :class:`~ncopt.errors.NcParseError` at that word (exit code
+    3 in the CLI); otherwise returns the program read in ``convention``
+    (unchanged when it is None or ``calculator``).
+    """
+    issue = decimal_point_issue(program, dialect, convention)
+    if issue is not None:
+        src = program.line_text(issue.line - 1)
+        context = f"    {src.expandtabs(1)}\n    {' ' * (issue.column - 1)}^"
+        raise NcParseError(issue.message, path=program.path, line=issue.line,
+                           column=issue.column, context=context)
+    return program if convention is None else apply_decimal_point(program, convention)
+
+
+def _check_convention(convention: str | None) -> None:
+    if convention is not None and convention not in DECIMAL_POINT_CONVENTIONS:
+        raise UsageError(f"--decimal-point must be one of {', '.join(DECIMAL_POINT_CONVENTIONS)}, "
+                         f"not {convention!r}")
+
+
+class _WordState(NamedTuple):
+    inch: np.ndarray  # (n_words,) bool: G20 in force at the word's line
+    feed_mode: np.ndarray  # (n_words,) float: 93, 94 or 95
+    dwell: np.ndarray  # (n_words,) bool: the word's line holds G4
+
+
+def _word_state(program: Program) -> _WordState:
+    """Units and feed mode in force at every word (a G code acts on its whole line)."""
+    n = program.n_lines
+    g = program.word_letter == ord("G")
+    value = program.word_value
+    units = _ffill_lines(n, program.word_line, g & np.isin(value, (20.0, 21.0)), value, 21.0)
+    feed = _ffill_lines(n, program.word_line, g & np.isin(value, (93.0, 94.0, 95.0)), value, 94.0)
+    dwell = np.zeros(n, dtype=bool)
+    dwell[program.word_line[g & (value == 4.0)]] = True
+    line = program.word_line
+    return _WordState(units[line] == 20.0, feed[line], dwell[line])
+
+
+def _ffill_lines(n_lines: int, word_line, mask, value, initial: float) -> np.ndarray:
+    """(n_lines,) last value of the masked words of each line, carried forward."""
+    per_line = np.full(n_lines, np.nan)
+    per_line[word_line[mask]] = value[mask]  # in word order: the last one of a line wins
+    idx = np.where(np.isnan(per_line), 0, np.arange(n_lines))
+    np.maximum.accumulate(idx, out=idx)
+    filled = per_line[idx]
+    filled[np.isnan(filled)] = initial
+    return filled
+
+
+def _without_point(program: Program) -> np.ndarray:
+    """(n_words,) bool: a number written without '.' at an address that takes a point."""
+    letter = program.word_letter
+    value = program.word_value
+    cand = np.isin(letter, list(_DECIMAL_ADDRESSES)) & np.isfinite(value)
+    cand &= value == np.floor(np.where(cand, value, 0.0))
+    idx = np.flatnonzero(cand)
+    if idx.size == 0:
+        return cand
+    raw = np.frombuffer(program.text.encode("latin-1"), dtype=np.uint8)
+    start, end = program.word_num_start[idx], program.word_end[idx]
+    point = np.zeros(idx.size, dtype=bool)
+    for k in range(int((end - start).max())):  # numbers are short: a few passes
+        pos = start + k
+        point |= (pos < end) & (raw[np.minimum(pos, raw.shape[0] - 1)] == ord("."))
+    cand[idx[point]] = False
+    return cand
+
+
+def _divisors(program: Program, state: _WordState, convention: str) -> np.ndarray:
+    """(n_words,) increments per unit of the program (mm, inch, deg, s, mm/min...)."""
+    metric, inch = _PER_UNIT[convention]
+    letter = program.word_letter
+    linear = np.where(state.inch, inch, metric)
+    per_unit = np.where(np.isin(letter, list(_ROTARY)), metric, linear)
+    per_unit = np.where((letter == ord("X")) & state.dwell, metric, per_unit)  # G4 X: seconds
+    feed = np.select([state.feed_mode == 93.0, state.feed_mode == 95.0, state.inch],
+                     [1000.0, linear, 100.0], 1.0)
+    return np.where(letter == ord("F"), feed, per_unit)
+
+
+def _unit(program: Program, state: _WordState, k: int) -> str:
+    letter = chr(program.word_letter[k])
+    inch = bool(state.inch[k])
+    if letter == "F":
+        return {93.0: "1/min (G93)", 95.0: "inch/rev (G95)" if inch else "mm/rev (G95)"}.get(
+            float(state.feed_mode[k]), "inch/min" if inch else "mm/min")
+    if letter in "ABC":
+        return "deg"
+    if letter == "X" and state.dwell[k]:
+        return "s"
+    return "inch" if inch else "mm"

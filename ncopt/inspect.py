@@ -6,7 +6,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .dialect import detect
+from .dialect import apply_decimal_point, decimal_point_issue, detect
 from .interp import interpret
 from .model import LineKind, Motion
 from .parse import parse_text
@@ -41,11 +41,22 @@ class Inspection:
         return asdict(self)
 
 
-def inspect_text(text: str, path: str = "<input>") -> Inspection:
-    """Parse and interpret; raises a located NcoptError when the program is unreadable."""
-    prog = parse_text(text, path)
-    tp = interpret(prog)
+def inspect_text(text: str, path: str = "<input>", *, dialect: str | None = None,
+                 decimal_point: str | None = None) -> Inspection:
+    """Parse and interpret; raises a located NcoptError when the program is unreadable.
+
+    ``dialect`` selects the grammar (None: the generic one) and, with the
+    detected dialect when None, whether values need a decimal point
+    convention; ``decimal_point`` is that convention (see
+    :data:`ncopt.dialect.DECIMAL_POINT_CONVENTIONS`).  A value that depends on
+    an unknown convention is reported among the warnings.
+    """
+    prog = parse_text(text, path, dialect=dialect)
     found = detect(text)
+    issue = decimal_point_issue(prog, dialect or found.name, decimal_point)
+    if decimal_point is not None:
+        prog = apply_decimal_point(prog, decimal_point)
+    tp = interpret(prog)
     motion = tp.motion[1:]
     feed = np.isin(motion, [Motion.LINEAR, Motion.ARC_CW, Motion.ARC_CCW])
     arcs = np.isin(motion, [Motion.ARC_CW, Motion.ARC_CCW])
@@ -68,7 +79,8 @@ def inspect_text(text: str, path: str = "<input>") -> Inspection:
                     for t in table.values()),
         tools_used=tuple(int(t) for t in np.unique(tp.tool[1:][feed])),
         opaque=tuple((i + 1, why) for i, why in sorted(prog.opaque_reason.items())),
-        warnings=tp.warnings,
+        warnings=((f"{path}:{issue.line}:{issue.column}: {issue.message}",) if issue else ())
+        + tuple(tp.warnings),
         s_range_rpm=(float(s_on.min()), float(s_on.max())) if s_on.size else (0.0, 0.0),
         f_range_mm_min=(float(f_vals.min()), float(f_vals.max())) if f_vals.size else (0.0, 0.0),
         cut_length_mm=float(length[cut].sum()),

@@ -1,11 +1,17 @@
 """Text -> :class:`~ncopt.model.Program`: every word with its character span.
 
-``grammars/gcode.lark`` is the single definition of the syntax.  Plain word
-blocks (``N120 G1 X-84.512 Y-80.000 Z-2.345``), which are nearly all of a
-finishing program, take a vectorised fast path whose character classes are
-derived from the grammar's LETTER, SNUMBER and WS terminals; every other line
-goes through Lark.  Tests check that both give the same words on every corpus
-line and on generated lines.
+The grammars in ``grammars/`` are the single definition of the syntax: one per
+dialect (``fanuc.lark``, ``sinumerik.lark``, ...), each importing the common
+core ``core.lark``, and ``generic.lark``, the union of them, read when no
+dialect is named.  Plain word blocks (``N120 G1 X-84.512 Y-80.000 Z-2.345``),
+which are nearly all of a finishing program, take a vectorised fast path whose
+character classes are derived from the grammar's LETTER, SNUMBER and WS
+terminals (and BLOCK_END, a block end mark such as Heidenhain's ``*``); every
+other line goes through Lark.  Tests check that both give the same words on
+every corpus line and on generated lines, for every grammar.
+
+A line one dialect's grammar refuses but another reads (``R1=5`` under
+``fanuc``) gives an error that names the construct and the dialects that read it.
 """
 
 from __future__ import annotations
@@ -18,7 +24,8 @@ import numpy as np
 from lark import Lark, Token, Tree
 from lark.exceptions import UnexpectedInput
 
-from .errors import NcParseError
+from .dialect import DIALECTS, FANUC, GENERIC, GRBL
+from .errors import NcParseError, UsageError
 from .model import LineKind, Program
 
 # byte classes of the fast path
@@ -26,8 +33,8 @@ _SPACE, _LETTER, _DIGIT, _SIGN, _POINT, _NL, _OTHER = range(7)
 _MAX_NUMBER_CHARS = 32
 
 
-def grammar_path(name: str = "gcode.lark") -> Path:
-    """Where the grammar lives: inside the installed package, else the source tree."""
+def grammar_path(name: str = "generic.lark") -> Path:
+    """Where a grammar lives: inside the installed package, else the source tree."""
     here = Path(__file__).resolve().parent
     for folder in (here / "grammars", here.parent / "grammars"):
         if (folder / name).is_file():
@@ -35,19 +42,35 @@ def grammar_path(name: str = "gcode.lark") -> Path:
     raise FileNotFoundError(f"grammar {name} not found next to {here}")
 
 
-@lru_cache(maxsize=None)
-def parser() -> Lark:
-    """The LALR parser of one source line (built once per process)."""
-    return Lark(grammar_path().read_text(encoding="utf-8"), parser="lalr",
-                propagate_positions=True, maybe_placeholders=False)
+def dialect_name(dialect: str | None) -> str:
+    """The grammar name of a dialect: ``None`` means the generic grammar."""
+    if dialect is None:
+        return GENERIC
+    if dialect not in DIALECTS:
+        raise UsageError(f"unknown dialect {dialect!r}; use one of {', '.join(DIALECTS)}")
+    return dialect
 
 
 @lru_cache(maxsize=None)
-def byte_classes() -> np.ndarray:
-    """(256,) int8 class of every byte, derived from the grammar's terminals."""
-    terms = {t.name: re.compile(t.pattern.to_regexp()) for t in parser().terminals}
+def _parser(name: str) -> Lark:
+    # Lark.open resolves the grammar's relative %import .core next to the file
+    return Lark.open(str(grammar_path(f"{name}.lark")), parser="lalr",
+                     propagate_positions=True, maybe_placeholders=False)
+
+
+def parser(dialect: str | None = None) -> Lark:
+    """The LALR parser of one source line in a dialect (built once per process)."""
+    return _parser(dialect_name(dialect))
+
+
+@lru_cache(maxsize=None)
+def _fast_tables(name: str) -> tuple[np.ndarray, np.ndarray]:
+    """(256,) int8 class and (256,) bool block-end mark of every byte, from the terminals."""
+    terms = {t.name: re.compile(t.pattern.to_regexp()) for t in _parser(name).terminals}
     letter, number, ws = terms["LETTER"], terms["SNUMBER"], terms["WS"]
+    block_end = terms.get("BLOCK_END")
     table = np.full(256, _OTHER, dtype=np.int8)
+    ends = np.zeros(256, dtype=bool)
     for code in range(256):
         ch = chr(code)
         if ws.fullmatch(ch):
@@ -60,7 +83,14 @@ def byte_classes() -> np.ndarray:
             table[code] = _POINT
         elif number.fullmatch(ch + "1"):
             table[code] = _SIGN
-    return table
+        ends[code] = block_end is not None and block_end.fullmatch(ch) is not None
+    ends &= table == _OTHER  # a byte the fast path reads as a word is never a block end
+    return table, ends
+
+
+def byte_classes(dialect: str | None = None) -> np.ndarray:
+    """(256,) int8 class of every byte, derived from the grammar's terminals."""
+    return _fast_tables(dialect_name(dialect))[0]
 
 
 _TAPE_MARK = re.compile(r"(?m)^[ \t]*(?:[Nn][0-9.]*[ \t]*)?%")
@@ -85,8 +115,8 @@ def _trailer_start(text: str, line_start: np.ndarray) -> int:
     return int(np.searchsorted(line_start, closing, side="right"))
 
 
-def parse_text(text: str, path: str = "<input>", *, use_fast_path: bool = True,
-               progress=None) -> Program:
+def parse_text(text: str, path: str = "<input>", *, dialect: str | None = None,
+               use_fast_path: bool = True, progress=None) -> Program:
     """Parse a whole program.
 
     Parameters
@@ -95,18 +125,33 @@ def parse_text(text: str, path: str = "<input>", *, use_fast_path: bool = True,
         The file decoded as latin-1 (so offsets are byte offsets).
     path : str
         Name used in error messages.
+    dialect : str or None
+        One of :data:`ncopt.dialect.DIALECTS`: the program is read with that
+        dialect's grammar and a construct of another dialect is an error.
+        ``None`` (or ``"generic"``) reads every dialect's constructs.
+    use_fast_path : bool
+        False sends every line through Lark (the reference the fast path is
+        tested against).
+    progress : callable or None
+        Called with the 0-based line number of every line Lark parses.
 
     Raises
     ------
     NcParseError
         For the first malformed line, with line, column and a caret context.
+    UsageError
+        For an unknown dialect name.
     """
+    name = dialect_name(dialect)
     raw = np.frombuffer(text.encode("latin-1"), dtype=np.uint8)
     if raw.shape[0] == 0:
         return _empty(path, text)
     line_start, content_end = _split_lines(raw)
     n_lines = line_start.shape[0] - 1
-    fast, blank, words = _fast_path_chunked(raw, line_start, content_end)
+    classes, block_end = _fast_tables(name)
+    fast, blank, words = _fast_path_chunked(raw, line_start,
+                                            _before_block_end(raw, line_start, content_end,
+                                                              block_end), classes)
     trailer = np.arange(n_lines) >= _trailer_start(text, line_start)
     if not use_fast_path:  # every line through Lark: the reference the fast path is tested against
         fast = np.zeros(n_lines, dtype=bool)
@@ -121,7 +166,7 @@ def parse_text(text: str, path: str = "<input>", *, use_fast_path: bool = True,
     opaque, exprs, slow_words = {}, {}, []
     for i in slow.tolist():
         lo, hi = int(line_start[i]), int(content_end[i])
-        line_kind, items = _parse_slow_line(text, lo, hi, i, path)
+        line_kind, items = _parse_slow_line(text, lo, hi, i, path, name)
         kind[i] = LineKind.BLANK if not items and line_kind == LineKind.WORDS else line_kind
         for item in items:
             if item[0] == "word":
@@ -135,6 +180,15 @@ def parse_text(text: str, path: str = "<input>", *, use_fast_path: bool = True,
         if progress is not None:
             progress(i)
     return _assemble(path, text, line_start, kind, has_expr, words, slow_words, opaque, exprs)
+
+
+def _before_block_end(raw, line_start, content_end, block_end) -> np.ndarray:
+    """End of each line's content without a final block end mark (``G1 X1 *``)."""
+    if not block_end.any():
+        return content_end
+    last = raw[np.maximum(content_end - 1, 0)]
+    marked = (content_end > line_start[:-1]) & block_end[last]
+    return content_end - marked
 
 
 def _empty(path: str, text: str) -> Program:
@@ -167,17 +221,17 @@ def _split_lines(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 FAST_CHUNK_LINES = 65536  # per-byte work arrays stay small (tens of MB, not GB)
 
 
-def _fast_path_chunked(raw, line_start, content_end):
+def _fast_path_chunked(raw, line_start, content_end, classes):
     """:func:`_fast_path` over chunks of lines, results joined (same words, less memory)."""
     n_lines = line_start.shape[0] - 1
     if n_lines <= FAST_CHUNK_LINES:
-        return _fast_path(raw, line_start, content_end)
+        return _fast_path(raw, line_start, content_end, classes)
     fast, blank, parts = [], [], []
     for a in range(0, n_lines, FAST_CHUNK_LINES):
         b = min(a + FAST_CHUNK_LINES, n_lines)
         base = int(line_start[a])
         f, bl, w = _fast_path(raw[base:int(line_start[b])], line_start[a:b + 1] - base,
-                              content_end[a:b] - base)
+                              content_end[a:b] - base, classes)
         fast.append(f)
         blank.append(bl)
         parts.append((w[0] + a, w[1], w[2], w[3] + base, w[4] + base, w[5] + base))
@@ -185,14 +239,15 @@ def _fast_path_chunked(raw, line_start, content_end):
     return np.concatenate(fast), np.concatenate(blank), words
 
 
-def _fast_path(raw, line_start, content_end):
+def _fast_path(raw, line_start, content_end, classes):
     """Vectorised word extraction for lines of only LETTER SNUMBER pairs.
 
-    Returns (fast (n,) bool, blank (n,) bool, words) where words is a tuple of
+    ``classes`` is the (256,) byte class table of the grammar.  Returns
+    (fast (n,) bool, blank (n,) bool, words) where words is a tuple of
     arrays (line, letter, value, start, end, num_start) for the fast lines.
     """
     n_lines = line_start.shape[0] - 1
-    cls = byte_classes()[raw]
+    cls = classes[raw]
     line_of = np.repeat(np.arange(n_lines, dtype=np.int32), np.diff(line_start))
     in_content = np.arange(raw.shape[0]) < np.repeat(content_end, np.diff(line_start))
     cls = np.where(in_content, cls, _NL)
@@ -255,15 +310,16 @@ def _parse_numbers(raw, start, length) -> np.ndarray:
     return chars.astype(np.uint8).view(f"S{width}").ravel().astype(np.float64)
 
 
-def _parse_slow_line(text: str, lo: int, hi: int, line_no: int, path: str):
-    """Parse one line with Lark. Returns (LineKind, items)."""
+def _parse_slow_line(text: str, lo: int, hi: int, line_no: int, path: str, name: str):
+    """Parse one line with Lark in the grammar ``name``. Returns (LineKind, items)."""
     src = text[lo:hi]
     try:
-        tree = parser().parse(src)
+        tree = _parser(name).parse(src)
     except UnexpectedInput as exc:
         col = getattr(exc, "column", 1) or 1
-        raise NcParseError(_describe(exc, src), path=path, line=line_no + 1, column=col,
-                           context=_caret(src, col)) from None
+        what = _other_dialect(src, col, name) or _describe(exc, src, name)
+        raise NcParseError(what, path=path, line=line_no + 1, column=col,
+                           context=caret_context(src, col)) from None
     line = tree.children[0]
     items, kind = [], LineKind.WORDS
     for child in line.children:
@@ -296,20 +352,129 @@ def _word_record(node: Tree, offset: int, line_no: int) -> tuple:
     return (line_no, ord(str(letter_tok).upper()), float("nan"), start, end, offset + vstart)
 
 
-def _describe(exc: UnexpectedInput, src: str) -> str:
+def _describe(exc: UnexpectedInput, src: str, name: str) -> str:
     col = (getattr(exc, "column", 1) or 1) - 1
     ch = src[col] if 0 <= col < len(src) else ""
     if "(" in src and src.count("(") != src.count(")"):
         return "unbalanced comment parentheses; close every '(' with ')' on the same line"
     if ch:
-        return (f"unexpected {ch!r}; expected a word such as X1.5, a comment in ( ) or after ;, "
+        after = " or after ;" if any(t.name == "EOL_COMMENT" for t in _parser(name).terminals) \
+            else ""
+        return (f"unexpected {ch!r}; expected a word such as X1.5, a comment in ( ){after}, "
                 "or fix the line")
     return "line ends in the middle of a word or expression; complete or remove it"
 
 
-def _caret(src: str, col: int) -> str:
+def caret_context(src: str, col: int) -> str:
+    """The line and a caret under 1-based column ``col`` (a tab is one column)."""
     shown = src.expandtabs(1)
     return f"    {shown}\n    {' ' * max(col - 1, 0)}^"
+
+
+# ------------------------------------------------ constructs of other dialects ----
+# What a construct of the generic grammar is, by the name of its tree node or of
+# the head token of an opaque node.
+_CONSTRUCTS = {
+    "KEYWORD": "a keyword (macro statement, cycle call or label)",
+    "ADDRESS_ASSIGN": "an address assignment",
+    "O_WORD": "a LinuxCNC o-word",
+    "DOLLAR": "a '$' system command or variable",
+    "COLON": "a ':' program or main block number",
+    "assign": "a parameter assignment",
+    "expr_word": "a word with a computed value",
+    "named_param": "a LinuxCNC named parameter",
+    "eol_comment": "a ';' comment",
+    "block_end": "a Heidenhain ISO block end",
+    "tape_mark": "a '%' tape mark",
+}
+_R_PARAMETER = re.compile(r"R[0-9]+[ \t]*=", re.I)
+_SNIPPET_CHARS = 24
+
+
+def _other_dialect(src: str, col: int, name: str) -> str | None:
+    """Why ``src`` is refused under dialect ``name`` although another dialect reads it."""
+    if name == GENERIC:
+        return None
+    try:
+        tree = _parser(GENERIC).parse(src)
+    except UnexpectedInput:
+        return None  # malformed in every dialect
+    found = _construct_at(tree.children[0], col - 1)
+    if found is None:
+        return None
+    kind, start, end = found
+    snippet = src[start:end].strip()
+    if len(snippet) > _SNIPPET_CHARS:
+        snippet = snippet[:_SNIPPET_CHARS - 3] + "..."
+    what = _CONSTRUCTS[kind]
+    if kind == "ADDRESS_ASSIGN" and _R_PARAMETER.match(snippet):
+        what = "a Sinumerik R-parameter assignment"
+    readers = [d for d in DIALECTS if d not in (name, GENERIC) and _reads(d, src, col - 1, found)]
+    todo = (f"pass --dialect {readers[0]} or --dialect {GENERIC}" if len(readers) == 1 else
+            f"pass --dialect {', '.join(readers)} or {GENERIC}" if readers else
+            f"pass --dialect {GENERIC}")
+    if kind == "eol_comment" and name == FANUC:
+        return (f"`{snippet}` is {what}, which Fanuc does not have: its manuals print the "
+                "end-of-block code as ';', so the text after it would be read as a block; "
+                f"write the comment in ( ) or {todo}")
+    if kind == "tape_mark" and name == GRBL:
+        return (f"`{snippet}` is {what}, which grbl does not read (it reports the line as an "
+                f"error); remove the line or {todo}")
+    return f"`{snippet}` is {what}, not read under the {name} dialect; {todo}"
+
+
+def _construct_at(line: Tree, index: int) -> tuple[str, int, int] | None:
+    """(kind, start, end) of the innermost construct of :data:`_CONSTRUCTS` at ``index``."""
+    items = [c for c in line.children if _span(c) is not None]
+    at = [c for c in items if _span(c)[0] <= index < _span(c)[1]]
+    after = [c for c in items if _span(c)[0] >= index]
+    node = (at or after or items[-1:] or [None])[0]
+    found = None
+    while node is not None:
+        kind = _kind(node)
+        if kind is not None:
+            found = (kind, *_span(node))
+        inner = [c for c in getattr(node, "children", ()) if _span(c) is not None
+                 and _span(c)[0] <= index < _span(c)[1]]
+        node = inner[0] if inner else None
+    return found
+
+
+def _span(node) -> tuple[int, int] | None:
+    if isinstance(node, Token):
+        return (node.start_pos, node.end_pos) if node.start_pos is not None else None
+    if node.meta.empty:
+        return None
+    return node.meta.start_pos, node.meta.end_pos
+
+
+_SAME_KIND = {"MACRO_STATEMENT": "KEYWORD", "O_WORD_COMPUTED": "O_WORD"}
+
+
+def _kind(node) -> str | None:
+    if isinstance(node, Token):
+        return None
+    if node.data == "opaque":
+        head = node.children[0].type
+        return _SAME_KIND.get(head, head)
+    return node.data if node.data in _CONSTRUCTS else None
+
+
+def _reads(dialect: str, src: str, index: int, construct: tuple[str, int, int]) -> bool:
+    """Whether ``dialect`` reads ``src`` with ``construct`` (kind, start, end) at ``index``.
+
+    Also when it reads the construct as part of a larger one of its own
+    (LinuxCNC's ``o[#1] call`` holds the keyword ``call``).
+    """
+    try:
+        tree = _parser(dialect).parse(src)
+    except UnexpectedInput:
+        return False
+    found = _construct_at(tree.children[0], index)
+    if found is None:
+        return False
+    kind, start, end = construct
+    return found[0] == kind or (found[1] <= start and found[2] >= end)
 
 
 def _assemble(path, text, line_start, kind, has_expr, fast_words, slow_words, opaque, exprs):
@@ -329,8 +494,9 @@ def _assemble(path, text, line_start, kind, has_expr, fast_words, slow_words, op
                    word_num_start=merged[5], opaque_reason=opaque, line_exprs=exprs)
 
 
-def read_program(path: str | Path, data: bytes | None = None) -> Program:
-    """Read and parse a program file (or ``data`` given for it)."""
+def read_program(path: str | Path, data: bytes | None = None, *,
+                 dialect: str | None = None) -> Program:
+    """Read and parse a program file (or ``data`` given for it), see :func:`parse_text`."""
     if data is None:
         data = Path(path).read_bytes()
-    return parse_text(data.decode("latin-1"), str(path))
+    return parse_text(data.decode("latin-1"), str(path), dialect=dialect)

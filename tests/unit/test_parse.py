@@ -1,4 +1,8 @@
-"""ncopt.parse: words and their spans, opaque lines, located errors, fast path == Lark."""
+"""ncopt.parse: words and their spans, opaque lines, located errors, fast path == Lark.
+
+The fast path must agree with Lark for every grammar: the generic one and each
+dialect's (tests/unit/test_dialect_grammars.py tests what each dialect reads).
+"""
 
 from __future__ import annotations
 
@@ -11,15 +15,20 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.lark import from_lark
 
-from ncopt.errors import NcoptError, NcParseError
+from ncopt.dialect import DIALECTS, GENERIC
+from ncopt.errors import NcoptError, NcParseError, UsageError
 from ncopt.model import LineKind
-from ncopt.parse import parse_text, parser
+from ncopt.parse import byte_classes, parse_text, parser
 
 ROOT = Path(__file__).resolve().parents[2]
 CORPUS = (ROOT / "../shared/corpus").resolve()
 NC_SUFFIXES = {".nc", ".ngc", ".tap", ".gcode"}
 CORPUS_FILES = sorted(p for p in CORPUS.rglob("*") if p.suffix.lower() in NC_SUFFIXES
                       and p.is_file()) if CORPUS.is_dir() else []
+
+# None is the generic grammar
+GRAMMARS = (None,) + tuple(d for d in DIALECTS if d != GENERIC)
+SMALL_CORPUS_FILES = [p for p in CORPUS_FILES if p.stat().st_size < 100_000]
 
 WORD_ARRAYS = ("word_line", "word_letter", "word_value", "word_start", "word_end",
                "word_num_start")
@@ -33,12 +42,12 @@ def words(prog):
                                      prog.word_end, prog.word_num_start)]
 
 
-def both_paths(text: str, path: str = "<t>"):
+def both_paths(text: str, path: str = "<t>", dialect: str | None = None):
     """Parse with the fast path and with Lark only; both must give the same result."""
     results = []
     for fast in (True, False):
         try:
-            results.append(parse_text(text, path, use_fast_path=fast))
+            results.append(parse_text(text, path, dialect=dialect, use_fast_path=fast))
         except NcParseError as exc:
             results.append(exc)
     assert_same_parse(*results)
@@ -262,6 +271,13 @@ def test_fast_path_equals_lark_on_corpus(path):
     both_paths(_corpus_text(path), str(path))
 
 
+@pytest.mark.parametrize("dialect", GRAMMARS[1:])
+@pytest.mark.parametrize("path", SMALL_CORPUS_FILES, ids=lambda p: str(p.relative_to(CORPUS)))
+def test_fast_path_equals_lark_on_corpus_per_dialect(path, dialect):
+    """Programs of other dialects fail: at the same line and column on both paths."""
+    both_paths(_corpus_text(path), str(path), dialect)
+
+
 def test_fast_path_takes_the_plain_blocks_of_a_real_program():
     """The equality above is only worth something if the fast path does the work."""
     text = _corpus_text(CORPUS / "camotics" / "flower_mold.nc")
@@ -275,13 +291,19 @@ def test_fast_path_takes_the_plain_blocks_of_a_real_program():
 LATIN1_LINE = st.characters(codec="latin-1", exclude_characters="\r\n")
 
 
+@lru_cache(maxsize=None)
+def grammar_lines(dialect: str | None):
+    """Lines generated from a grammar (built once per grammar)."""
+    return from_lark(parser(dialect), start="line", alphabet=LATIN1_LINE)
+
+
+@pytest.mark.parametrize("dialect", GRAMMARS)
 @settings(max_examples=150)
-@given(st.lists(from_lark(parser(), start="line", alphabet=LATIN1_LINE), min_size=1,
-                max_size=4),
-       st.sampled_from(["\n", "\r\n"]))
-def test_fast_path_equals_lark_on_grammar_lines(lines, newline):
+@given(data=st.data(), newline=st.sampled_from(["\n", "\r\n"]))
+def test_fast_path_equals_lark_on_grammar_lines(dialect, data, newline):
+    lines = data.draw(st.lists(grammar_lines(dialect), min_size=1, max_size=4))
     text = newline.join(lines) + newline
-    result = both_paths(text)
+    result = both_paths(text, dialect=dialect)
     # every line the grammar generates is valid
     assert not isinstance(result, NcParseError), (text, result)
 
@@ -312,12 +334,13 @@ def word_lines(draw):
     return "".join(parts), expected
 
 
-@settings(max_examples=150)
+@pytest.mark.parametrize("dialect", GRAMMARS)
+@settings(max_examples=100)
 @given(st.lists(word_lines(), min_size=1, max_size=5), st.sampled_from(["\n", "\r\n"]),
        st.booleans())
-def test_generated_word_lines_spans_and_values(lines, newline, final_newline):
+def test_generated_word_lines_spans_and_values(dialect, lines, newline, final_newline):
     text = newline.join(line for line, _ in lines) + (newline if final_newline else "")
-    prog = both_paths(text)
+    prog = both_paths(text, dialect=dialect)
     assert not isinstance(prog, NcParseError)
     offset, got = 0, words(prog)
     expected = []
@@ -333,12 +356,34 @@ def test_generated_word_lines_spans_and_values(lines, newline, final_newline):
         assert s == start and ln == line_no
 
 
-NEAR_MISS = st.text(st.sampled_from("GXSFgx0123456789.+- \t#[]=()%;/O\x00\x7f\xa0"),
+NEAR_MISS = st.text(st.sampled_from("GXSFgx0123456789.+- \t#[]=()%;/O*$:\x00\x7f\xa0"),
                     max_size=24)
 
 
+@pytest.mark.parametrize("dialect", GRAMMARS)
 @settings(max_examples=300)
 @given(st.lists(NEAR_MISS, min_size=1, max_size=4))
-def test_fast_path_equals_lark_on_near_miss_lines(lines):
+def test_fast_path_equals_lark_on_near_miss_lines(dialect, lines):
     """Lines that are almost word blocks: the fast path must refuse exactly what Lark refuses."""
-    both_paths("\n".join(lines) + "\n")
+    both_paths("\n".join(lines) + "\n", dialect=dialect)
+
+
+@pytest.mark.parametrize("dialect", GRAMMARS)
+def test_every_grammar_has_the_fast_path_byte_classes(dialect):
+    """The fast path reads the same bytes as words in every grammar: they share the core."""
+    assert np.array_equal(byte_classes(dialect), byte_classes(None))
+    letters = [chr(c) for c in range(256) if byte_classes(dialect)[c] == 1]
+    assert "".join(letters) == "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz"
+
+
+@pytest.mark.parametrize("dialect", ["generic", None])
+def test_generic_is_the_default_grammar(dialect):
+    assert parser(dialect) is parser()
+    text = "N10 G1 X1 R1=5\n#1=2\nG1 X#1 ; c\n$H\nG0 Z5 *\n"
+    a, b = parse_text(text, dialect=dialect), parse_text(text)
+    assert_same_parse(a, b)
+
+
+def test_unknown_dialect_is_a_usage_error():
+    with pytest.raises(UsageError, match="unknown dialect 'haas'; use one of sinumerik, fanuc"):
+        parse_text("G1 X1\n", dialect="haas")
