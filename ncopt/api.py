@@ -18,7 +18,7 @@ import numpy as np
 from . import planner
 from .contacts import Method, Sampled, contacts_for
 from .controls import control_note
-from .dialect import detect
+from .dialect import detect, resolve_decimal_point
 from .errors import NothingToPlan, PlanningError, UsageError, VerificationError
 from .geometry import MeshIndex, load_stl, mesh_resolution_mm
 from .interp import interpret
@@ -53,6 +53,7 @@ class Job:
     tool_library: dict = field(default_factory=dict)  # T number -> Cutter (profiles)
     teeth: int = 2
     method: Method = Method()  # contact point (default) or remaining material
+    decimal_point: str | None = None  # Fanuc input convention: calculator, is-b, is-c
     contact_tol_mm: float = 0.05
     verify: bool = True
     stamp: bool = True
@@ -139,10 +140,23 @@ def rewrite_file(path: str | Path, job: Job, mesh_path: str | Path | None = None
                         MeshIndex(load_stl(mesh_path)) if mesh_path else None)
 
 
+def read_text(text: str, path: str, job: Job) -> Program:
+    """Parse a program as the job's control reads it.
+
+    With a dialect named (``job.control``: the options or a machine profile),
+    that dialect's grammar, which refuses other dialects' constructs; else the
+    generic grammar.  Values are then read in the job's decimal-point
+    convention: a Fanuc program (named or detected) with a value whose meaning
+    depends on it and no convention given is refused at that word.
+    """
+    prog = parse_text(text, path, dialect=job.control)
+    return resolve_decimal_point(prog, job.control or detect(text).name, job.decimal_point)
+
+
 def rewrite_text(text: str, job: Job, path: str = "<input>",
                  mesh_index: MeshIndex | None = None) -> Result:
     """Rewrite a program's S and F words; every other byte stays as it is."""
-    prog = parse_text(text, path)
+    prog = read_text(text, path, job)
     tp = interpret(prog)
     idx = planner.block_index(tp.line)
     s_style = detect_style(prog, S_CODE)
@@ -161,7 +175,7 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     stamp = stamp_edit(prog, plans) if job.stamp else None
     out = apply_edits(text, edits + ([stamp] if stamp else ()))
     if job.verify:
-        verify(prog, tp, out, targets, s_style, f_style)
+        verify(prog, tp, out, targets, s_style, f_style, job)
     summary = _summary(prog, tp, idx, plans, skipped, edits, mesh_edge)
     found = detect(text)
     control = job.control or found.name
@@ -308,15 +322,16 @@ def _targets(tp, idx, plans, f_style) -> Targets:
     return Targets(line=idx.line, s_value=s_value, f_value=f_value)
 
 
-def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_style) -> None:
+def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_style,
+           job: Job) -> None:
     """The checks run after every rewrite; raises VerificationError, writes nothing.
 
-    One parse of the output serves all three: the stamp lines are whole comment lines
+    One parse of the output (as the job reads the input) serves all three: the stamp lines are whole comment lines
     at the top, so masking keeps the line structure and every target line moves by the
     same count.  With S and F masked the output equals the input, so every geometry
     word is the input's own: the toolpath cannot have changed.
     """
-    out_prog = parse_text(out, prog.path)
+    out_prog = read_text(out, prog.path, job)
     in_stamps = sorted(st.line for st in read_stamps(prog).values())
     out_stamps = sorted(st.line for st in read_stamps(out_prog).values())
     if _masked_lines(out_prog, out_stamps) != _masked_lines(prog, in_stamps):

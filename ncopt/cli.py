@@ -19,6 +19,7 @@ from .errors import (MeshError, NcoptError, NcParseError, PlanningError, UsageEr
                      VerificationError)
 from .contacts import Method
 from .controls import CONTROLS
+from .dialect import DECIMAL_POINT_CONVENTIONS
 from .model import Cutter, CuttingData, Machine, PlanOptions
 
 
@@ -83,6 +84,10 @@ FzBand = Annotated[float, typer.Option("--fz-band", help="Allowed fz deviation w
 Control = Annotated[Optional[str], typer.Option(
     "--dialect", "--control", help="The control the program is for: sinumerik, fanuc, "
     "linuxcnc, grbl, heidenhain-iso or generic (default: detected from the program's marks).")]
+DecimalPoint = Annotated[Optional[str], typer.Option(
+    "--decimal-point", help="How the Fanuc control reads a value without a decimal point: "
+    "calculator (X25 = 25 mm), is-b (X25000 = 25 mm) or is-c (X250000 = 25 mm). Needed for a "
+    "Fanuc program that writes such values.")]
 MethodName = Annotated[str, typer.Option(
     "--method", help="contact: R_eff at the contact point (default); material: where the "
     "edge meets the remaining material (the paper's second method).")]
@@ -117,7 +122,7 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
              tool_point="tip", min_rpm_step=10.0, tool=None, rapid=None,
              fz_policy="centred", fz_band=2.0, control=None, min_s_interval_ms=None,
              machine=None, tools_file=None, cutter=None, material=None,
-             method="contact", ap=0.2, allowance_along="normal") -> Job:
+             method="contact", ap=0.2, allowance_along="normal", decimal_point=None) -> Job:
     """A Job from command-line values and the profiles, checked; raises UsageError.
 
     Command-line values win; then the machine profile (--machine, else the
@@ -135,6 +140,7 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
     control_from = "given" if control is not None else f"machine profile {name}"
     rapid, control = pick(rapid, "rapid_mm_min", 10000.0), pick(control, "control", None)
     min_s_interval_ms = pick(min_s_interval_ms, "min_s_interval_ms", 0.0)
+    decimal_point = pick(decimal_point, "decimal_point", None)
     if cutter is not None:
         if diameter is not None:
             raise UsageError("give --cutter or --diameter, not both")
@@ -171,6 +177,9 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
         raise UsageError("--fz-band is a percentage above 0 and below 50")
     if control is not None and control not in CONTROLS:
         raise UsageError(f"--dialect must be one of {', '.join(CONTROLS)}, not {control!r}")
+    if decimal_point is not None and decimal_point not in DECIMAL_POINT_CONVENTIONS:
+        raise UsageError(f"--decimal-point must be one of {', '.join(DECIMAL_POINT_CONVENTIONS)}, "
+                         f"not {decimal_point!r}")
     if min_s_interval_ms < 0:
         raise UsageError("--min-s-interval-ms cannot be negative")
     if method not in ("contact", "material"):
@@ -186,7 +195,7 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
                                    fz_tolerance=fz_band / 100.0, fz_policy=fz_policy,
                                    min_s_interval_ms=min_s_interval_ms),
                tool=tool, teeth=teeth, control=control, control_from=control_from,
-               method=Method(method, ap, allowance_along),
+               method=Method(method, ap, allowance_along), decimal_point=decimal_point,
                tool_library={k: c for k, (c, _) in profiles.tools.items() if isinstance(k, int)})
 
 
@@ -231,7 +240,8 @@ def rewrite(
     max_rpm: MaxRpm = None, min_rpm: MinRpm = None, max_feed: MaxFeed = None,
     planner: Planner = "lookahead", tool_point: ToolPoint = "tip", min_rpm_step: MinStep = 10.0,
     tool: Tool = None, rapid: Rapid = None, fz_policy: FzPolicy = "centred",
-    fz_band: FzBand = 2.0, control: Control = None, min_s_interval_ms: SInterval = None,
+    fz_band: FzBand = 2.0, control: Control = None, decimal_point: DecimalPoint = None,
+    min_s_interval_ms: SInterval = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, method: MethodName = "contact", ap: Ap = 0.2,
     allowance_along: AllowanceAlong = "normal",
@@ -296,7 +306,8 @@ def batch(
     max_rpm: MaxRpm = None, min_rpm: MinRpm = None, max_feed: MaxFeed = None,
     planner: Planner = "lookahead", tool_point: ToolPoint = "tip", min_rpm_step: MinStep = 10.0,
     tool: Tool = None, rapid: Rapid = None, fz_policy: FzPolicy = "centred",
-    fz_band: FzBand = 2.0, control: Control = None, min_s_interval_ms: SInterval = None,
+    fz_band: FzBand = 2.0, control: Control = None, decimal_point: DecimalPoint = None,
+    min_s_interval_ms: SInterval = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, method: MethodName = "contact", ap: Ap = 0.2,
     allowance_along: AllowanceAlong = "normal",
@@ -351,7 +362,7 @@ def simulate(
     max_rpm: MaxRpm = None, min_rpm: MinRpm = None, max_feed: MaxFeed = None,
     tool_point: ToolPoint = "tip", tool: Tool = None, rapid: Rapid = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
-    material: Material = None,
+    material: Material = None, control: Control = None, decimal_point: DecimalPoint = None,
 ) -> None:
     """Replay a program on a spindle that ramps at its real acceleration: time, fz, vc."""
     from .geometry import MeshIndex, load_stl
@@ -432,13 +443,17 @@ def print_simulation(r, console: Console) -> None:
 def inspect(
     program: Annotated[str, typer.Argument(help="NC program, or - for stdin.")],
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
+    control: Control = None, decimal_point: DecimalPoint = None,
 ) -> None:
     """Show what ncopt understands of a program before it changes anything."""
     from .inspect import inspect_text, render_inspection
 
     try:
         data = sys.stdin.buffer.read() if program == "-" else _read(program)
-        info = inspect_text(data.decode("latin-1"), program)
+        if control is not None and control not in CONTROLS:
+            raise UsageError(f"--dialect must be one of {', '.join(CONTROLS)}, not {control!r}")
+        info = inspect_text(data.decode("latin-1"), program, dialect=control,
+                            decimal_point=decimal_point)
     except NcoptError as exc:
         _fail(exc)
     if as_json:

@@ -70,7 +70,7 @@ def inspect_text(text: str, path: str = "<input>", *, dialect: str | None = None
     units = "inch" if tp.line_inch is not None and tp.line_inch.any() else "mm"
     table = tool_table(prog)
     return Inspection(
-        path=path, dialect=found.name, dialect_marks=found.marks, units=units,
+        path=path, dialect=dialect or found.name, dialect_marks=() if dialect else found.marks, units=units,
         lines=prog.n_lines, blocks=int(np.sum(prog.line_kind == LineKind.WORDS)),
         moves=int(np.unique(tp.line[1:]).size), feed_moves=int(np.unique(tp.line[1:][feed]).size),
         rapids=int(np.unique(tp.line[1:][motion == Motion.RAPID]).size),

@@ -45,14 +45,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .api import Job, nominal_cutting_data
+from .api import Job, nominal_cutting_data, read_text
 from .stamp import read_stamps
 from .contacts import sample_points, path_contacts_at_samples
 from .errors import UsageError
 from .geometry import MeshIndex, contacts_from_mesh, load_stl
 from .interp import MM_PER_INCH, ffill, interpret
 from .model import Contacts, Cutter, CuttingData, Machine, Motion, Program, Toolpath
-from .parse import parse_text
 from .tools import center_offset_mm
 from .tooltable import BALL, BULL, cutter_for, tool_table
 
@@ -253,7 +252,7 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
     """
     if not sample_mm > 0:
         raise UsageError(f"sample spacing must be positive, got {sample_mm}", path)
-    prog = parse_text(prog_text, path)
+    prog = read_text(prog_text, path, job)
     tp = interpret(prog)
     cutter, tool_mask = _evaluated_tool(prog, tp, job, path)
     job = replace(job, cutter=cutter)

@@ -229,3 +229,78 @@ def test_summary_renders_without_colour(small_program, bowl_index):
     prog_in = parse_text(small_program.decode("latin-1"))
     assert s.blocks == prog_in.n_lines
     assert "vc 70.0 m/min, fz 0.1000 mm" in text
+
+
+# ------------------------------------------------- Fanuc decimal-point convention ----
+def _fanuc_dome(increments: bool) -> str:
+    """A zig-zag finish over a dome, Fanuc style; axis values in IS-B increments
+    (X25000 = 25 mm) or in mm with a decimal point."""
+    def num(v_mm: float) -> str:
+        micrometres = round(v_mm * 1000)
+        return f"{micrometres}" if increments else f"{micrometres / 1000:.3f}"
+
+    lines = ["%", "O1000", "G21 G90 G94 G17", "T1 M6", "S4000 M3",
+             f"G0 X{num(-20)} Y{num(-20)} Z{num(20)}"]
+    for i, y in enumerate(np.arange(-20.0, 20.01, 1.0)):
+        xs = np.arange(-20.0, 20.01, 1.0)
+        for j, x in enumerate(xs[::-1] if i % 2 else xs):
+            z = 10.0 - (x * x + y * y) / 80.0
+            lines.append(f"G1 X{num(x)} Y{num(y)} Z{num(z)}" + (" F800" if i == j == 0 else ""))
+    lines += [f"G0 Z{num(30)}", "M5", "M30", "%"]
+    return "\n".join(lines) + "\n"
+
+
+def test_fanuc_values_without_a_decimal_point_need_the_convention(tmp_path):
+    isb, mm = tmp_path / "isb.nc", tmp_path / "mm.nc"
+    isb.write_text(_fanuc_dome(True))
+    mm.write_text(_fanuc_dome(False))
+    common = ["--diameter", "6", "--accel", "227", "--max-rpm", "15000", "--vc", "60",
+              "--fz", "0.03"]
+    refused = invoke(["rewrite", isb, *common, "-o", tmp_path / "out.nc"])
+    assert refused.exit_code == Exit.PROGRAM
+    assert f"{isb}:6:4: `X-20000` has no decimal point" in refused.stderr
+    assert "--decimal-point calculator, is-b or is-c" in refused.stderr
+    assert not (tmp_path / "out.nc").exists()
+    # read in IS-B, the program is the same part as the one written in mm: same S and F
+    a = invoke(["rewrite", isb, *common, "--decimal-point", "is-b", "-o", tmp_path / "a.nc"])
+    b = invoke(["rewrite", mm, *common, "-o", tmp_path / "b.nc"])
+    assert a.exit_code == b.exit_code == Exit.OK, a.stderr + b.stderr
+
+    def sf(path):
+        prog = parse_text(path.read_text())
+        keep = np.isin(prog.word_letter, [ord("S"), ord("F")])
+        return list(zip(prog.word_line[keep].tolist(), prog.word_letter[keep].tolist(),
+                        prog.word_value[keep].tolist()))
+
+    assert sf(tmp_path / "a.nc") == sf(tmp_path / "b.nc")
+    assert len(sf(tmp_path / "a.nc")) > 100
+    out = (tmp_path / "a.nc").read_text()
+    base = masked(parse_text(isb.read_text()))
+    assert without_one_comment_line(base, masked(parse_text(out))) == base  # X-20000 stays
+    # the same program read as calculator input is 1000 times larger: other speeds
+    c = invoke(["rewrite", isb, *common, "--decimal-point", "calculator", "-o", tmp_path / "c.nc"])
+    assert c.exit_code == Exit.OK
+    assert sf(tmp_path / "c.nc") != sf(tmp_path / "a.nc")
+
+
+def test_a_named_dialect_refuses_another_dialects_construct(tmp_path):
+    prog = tmp_path / "p.nc"
+    prog.write_text("G21 G90\nR1=5\nG1 X1. F100\n")
+    result = invoke(["inspect", prog, "--dialect", "fanuc"])
+    assert result.exit_code == Exit.PROGRAM
+    assert f"{prog}:2:3: `R1=5` is a Sinumerik" in result.stderr
+    assert "--dialect sinumerik" in result.stderr
+    assert invoke(["inspect", prog]).exit_code == Exit.OK  # the generic grammar reads it
+    bad = invoke(["inspect", prog, "--decimal-point", "is-x"])
+    assert bad.exit_code == Exit.USAGE and "is-b" in bad.stderr
+
+
+def test_a_machine_profile_sets_the_decimal_point(tmp_path):
+    isb = tmp_path / "isb.nc"
+    isb.write_text(_fanuc_dome(True))
+    profiles = tmp_path / "p.toml"
+    profiles.write_text('[machines.f]\naccel_rad_s2 = 227\nmax_rpm = 15000\n'
+                        'control = "fanuc"\ndecimal_point = "is-b"\n')
+    result = invoke(["rewrite", isb, "--diameter", "6", "--vc", "60", "--fz", "0.03",
+                     "--machine", "f", "--tools", profiles, "-o", tmp_path / "o.nc"])
+    assert result.exit_code == Exit.OK, result.stderr
