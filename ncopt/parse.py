@@ -16,7 +16,9 @@ A line one dialect's grammar refuses but another reads (``R1=5`` under
 
 from __future__ import annotations
 
+import os
 import re
+from concurrent.futures import ThreadPoolExecutor
 from functools import lru_cache
 from pathlib import Path
 
@@ -156,7 +158,9 @@ def parse_text(text: str, path: str = "<input>", *, dialect: str | None = None,
     if not use_fast_path:  # every line through Lark: the reference the fast path is tested against
         fast = np.zeros(n_lines, dtype=bool)
         blank = blank & False
-    words = tuple(w[~trailer[words[0]] & fast[words[0]]] for w in words)
+    keep = ~trailer[words[0]] & fast[words[0]]
+    if not keep.all():
+        words = tuple(w[keep] for w in words)
     fast &= ~trailer
     blank &= ~trailer
     kind = np.where(blank, LineKind.BLANK, LineKind.WORDS).astype(np.int8)
@@ -222,21 +226,30 @@ FAST_CHUNK_LINES = 65536  # per-byte work arrays stay small (tens of MB, not GB)
 
 
 def _fast_path_chunked(raw, line_start, content_end, classes):
-    """:func:`_fast_path` over chunks of lines, results joined (same words, less memory)."""
+    """:func:`_fast_path` over chunks of lines, results joined (same words, less memory).
+
+    The chunks run in a pool of threads: the work is numpy loops over bytes, which
+    release the GIL (1M lines: 1.9 s serial, 1.1-1.3 s in two threads).
+    """
     n_lines = line_start.shape[0] - 1
     if n_lines <= FAST_CHUNK_LINES:
         return _fast_path(raw, line_start, content_end, classes)
-    fast, blank, parts = [], [], []
-    for a in range(0, n_lines, FAST_CHUNK_LINES):
+
+    def chunk(a: int):
         b = min(a + FAST_CHUNK_LINES, n_lines)
         base = int(line_start[a])
         f, bl, w = _fast_path(raw[base:int(line_start[b])], line_start[a:b + 1] - base,
                               content_end[a:b] - base, classes)
-        fast.append(f)
-        blank.append(bl)
-        parts.append((w[0] + a, w[1], w[2], w[3] + base, w[4] + base, w[5] + base))
-    words = tuple(np.concatenate([p[k] for p in parts]) for k in range(6))
-    return np.concatenate(fast), np.concatenate(blank), words
+        return f, bl, (w[0] + a, w[1], w[2], w[3] + base, w[4] + base, w[5] + base)
+
+    starts = range(0, n_lines, FAST_CHUNK_LINES)
+    with ThreadPoolExecutor(min(_THREADS, len(starts))) as pool:
+        done = list(pool.map(chunk, starts))
+    words = tuple(np.concatenate([d[2][k] for d in done]) for k in range(6))
+    return np.concatenate([d[0] for d in done]), np.concatenate([d[1] for d in done]), words
+
+
+_THREADS = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
 def _fast_path(raw, line_start, content_end, classes):
