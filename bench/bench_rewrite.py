@@ -64,6 +64,8 @@ GENERATOR_SOURCES = (ROOT / "bench" / "make_case.py", ROOT / "samples" / "make_b
 # called inside another hooked one is a sub-stage (parse inside verify = the re-parse).
 HOOKS = (
     ("api.rewrite_file", "ncopt.api:rewrite_file"),
+    ("mesh load (thread)", "ncopt.api:_mesh_index"),
+    ("waiting for the mesh", "ncopt.api:_loaded"),
     ("mesh load: STL read", "ncopt.geometry:load_stl"),
     ("mesh load: BVH + normals", "ncopt.geometry:MeshIndex.__init__"),
     ("parse", "ncopt.parse:parse_text"),
@@ -87,7 +89,7 @@ HOOKS = (
     ("verification", "ncopt.api:verify"),
     ("masked texts", "ncopt.rewrite:masked"),
     ("summary", "ncopt.api:_summary"),
-    ("mesh edge lengths", "ncopt.geometry:mesh_resolution_mm"),
+    ("mesh edge lengths", "ncopt.mesh:mesh_resolution_mm"),
 )
 
 # ---------------------------------------------------------------- the case
@@ -223,6 +225,7 @@ class Recorder:
         self.trace, self.profile = trace, profile
         self.stats: dict[tuple, Stats] = {}
         self.stack: list[_Frame] = []
+        self.thread_s: dict[str, float] = {}  # wall s of hooked calls in other threads
         self.pid = os.getpid()
 
     def _rss(self) -> float:
@@ -239,8 +242,14 @@ class Recorder:
         return time.process_time() + t.children_user + t.children_system
 
     def run(self, label: str, target: str, fn, *args, **kwargs):
-        if os.getpid() != self.pid or threading.current_thread() is not threading.main_thread():
-            return fn(*args, **kwargs)  # a forked worker or another thread: just call
+        if os.getpid() != self.pid:
+            return fn(*args, **kwargs)  # a forked worker: just call
+        if threading.current_thread() is not threading.main_thread():
+            t0 = time.perf_counter()  # another thread: its wall time only
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                self.thread_s[label] = self.thread_s.get(label, 0.0) + time.perf_counter() - t0
         self._push(label, target)
         try:
             return fn(*args, **kwargs)
@@ -414,6 +423,8 @@ def print_stages(rec: Recorder) -> None:
         print(row + (f" {st.traced_peak / MB:9.1f}" if st.traced_peak is not None else ""))
     top = [st for st in rec.stats.values() if st.depth == 0]
     print(f"{'sum of top-level stages':44s} {'':5s} {sum(st.seconds for st in top):8.3f}")
+    for label, seconds in rec.thread_s.items():
+        print(f"{'in another thread (overlapping the above): ' + label:50s} {seconds:8.3f} s")
 
 
 def print_targets(wall_s: float, rec: Recorder, pss: PssSampler, summary, e2e: dict | None,

@@ -215,6 +215,11 @@ class MeshIndex:
             cn = np.where(sharp[F][:, :, None], split, cn)
         return cn
 
+    @functools.cached_property
+    def edge_lengths(self) -> EdgeLengths:
+        """:func:`ncopt.mesh.mesh_resolution_mm` of the mesh, computed once."""
+        return mesh_resolution_mm(self.mesh)
+
     def map_chunks(self, fn, *arrays: np.ndarray, pool: bool = True) -> tuple:
         """Apply ``fn`` to consecutive row chunks of ``arrays``; concatenate in order.
 

@@ -222,7 +222,9 @@ def _split_lines(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return starts, ends
 
 
-FAST_CHUNK_LINES = 65536  # per-byte work arrays stay small (tens of MB, not GB)
+# Per-byte work arrays stay small; two threads hold one chunk each.  1M lines of a
+# rewritten program: 65536 lines 1.8 s and +615 MB, 16384 lines 1.2 s and +420 MB.
+FAST_CHUNK_LINES = 16384
 
 
 def _fast_path_chunked(raw, line_start, content_end, classes):
