@@ -158,7 +158,7 @@ def _loaded(mesh_index: MeshIndex | Future | None) -> MeshIndex | None:
     return mesh_index.result() if isinstance(mesh_index, Future) else mesh_index
 
 
-def read_text(text: str, path: str, job: Job) -> Program:
+def read_text(text: str, path: str, job: Job, detected: str | None = None) -> Program:
     """Parse a program as the job's control reads it.
 
     With a dialect named (``job.control``: the options or a machine profile),
@@ -166,9 +166,11 @@ def read_text(text: str, path: str, job: Job) -> Program:
     generic grammar.  Values are then read in the job's decimal-point
     convention: a Fanuc program (named or detected) with a value whose meaning
     depends on it and no convention given is refused at that word.
+    ``detected``: the dialect :func:`ncopt.dialect.detect` finds (detected here if None).
     """
     prog = parse_text(text, path, dialect=job.control)
-    return resolve_decimal_point(prog, job.control or detect(text).name, job.decimal_point)
+    control = job.control or detected or detect(text).name
+    return resolve_decimal_point(prog, control, job.decimal_point)
 
 
 def rewrite_text(text: str, job: Job, path: str = "<input>",
@@ -178,7 +180,8 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     ``mesh_index``: the part's mesh, or a ``concurrent.futures.Future`` of it
     (loading while the program is read); None: normals from the toolpath.
     """
-    prog = read_text(text, path, job)
+    found = detect(text)
+    prog = read_text(text, path, job, found.name)
     tp = interpret(prog)
     mesh_index = _loaded(mesh_index)
     idx = planner.block_index(tp.line)
@@ -198,9 +201,8 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     stamp = stamp_edit(prog, plans) if job.stamp else None
     out = apply_edits(text, edits + ([stamp] if stamp else ()))
     if job.verify:
-        verify(prog, tp, out, targets, s_style, f_style, job)
+        verify(prog, tp, out, targets, s_style, f_style, job, found.name)
     summary = _summary(prog, tp, idx, plans, skipped, edits, mesh_edge)
-    found = detect(text)
     control = job.control or found.name
     source = job.control_from if job.control else (
         f"detected from {len(found.marks)} mark{'s' if len(found.marks) > 1 else ''}"
@@ -346,7 +348,7 @@ def _targets(tp, idx, plans, f_style) -> Targets:
 
 
 def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_style,
-           job: Job) -> None:
+           job: Job, detected: str | None = None) -> None:
     """The checks run after every rewrite; raises VerificationError, writes nothing.
 
     One parse of the output (as the job reads the input) serves all three: the stamp lines are whole comment lines
@@ -354,10 +356,10 @@ def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_s
     same count.  With S and F masked the output equals the input, so every geometry
     word is the input's own: the toolpath cannot have changed.
     """
-    out_prog = read_text(out, prog.path, job)
+    out_prog = read_text(out, prog.path, job, detected)
     in_stamps = sorted(st.line for st in read_stamps(prog).values())
     out_stamps = sorted(st.line for st in read_stamps(out_prog).values())
-    if _masked_lines(out_prog, out_stamps) != _masked_lines(prog, in_stamps):
+    if _masked_without(out_prog, out_stamps) != _masked_without(prog, in_stamps):
         raise VerificationError("the rewrite changed more than S and F words; nothing written",
                                 prog.path)
     shifted = replace(targets, line=targets.line + (len(out_stamps) - len(in_stamps)))
@@ -368,12 +370,18 @@ def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_s
                                 prog.path, line)
 
 
-def _masked_lines(prog: Program, drop: list) -> list:
-    """The program with S/F words masked, as lines, without the given (stamp) lines."""
-    lines = masked(prog).splitlines(keepends=True)
-    for i in reversed(drop):
-        del lines[i]
-    return lines
+def _masked_without(prog: Program, drop: list) -> str:
+    """The program with S/F words masked, without the given (stamp) lines.
+
+    Masking keeps every line ending, so the program's own line numbers hold;
+    the stamp lines are near the top, so only the head is split.
+    """
+    text = masked(prog)
+    if not drop:
+        return text
+    head = text.split("\n", max(drop) + 1)
+    rest = head.pop() if len(head) > max(drop) + 1 else ""
+    return "".join(line + "\n" for i, line in enumerate(head) if i not in drop) + rest
 
 
 def _summary(prog, tp, idx, plans, skipped, edits, mesh_edge) -> Summary:
