@@ -359,7 +359,7 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
     inc_s2, inc_s = (a.tolist() for a in incs)
     cutting = (blocks.cutting & blocks.planned).tolist()
     fixed = (~blocks.planned).tolist()
-    fixed_rpm = blocks.fixed_rpm.tolist()
+    fixed_rpm = blocks.fixed_rpm  # read only in fixed blocks: no list of 1M floats
     starts = blocks.spindle_start.tolist()
     step = opts.min_rpm_step
     lo_int = math.ceil(s_lo)
@@ -368,7 +368,8 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
     cmd_out, low_out, high_out = [0.0] * n, [0.0] * n, [0.0] * n
     interval_s = opts.min_s_interval_ms / 1000.0
     timed = interval_s > 0  # else the clock since the last S word never matters
-    length, time_free = blocks.length_mm.tolist(), blocks.time_s.tolist()
+    length, time_free = ((blocks.length_mm.tolist(), blocks.time_s.tolist()) if timed
+                         else (None, None))
     floor, sqrt, inf = math.floor, math.sqrt, math.inf
     band = not math.isinf(ratio)
     cur = real = None
@@ -379,7 +380,7 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
         target = s_plan[b]
         before = cur
         if fixed[b]:
-            cur = fixed_rpm[b]
+            cur = float(fixed_rpm[b])
             if not cur > 0:  # the program runs this block with no S in force
                 real = None
         elif cur is None or starts[b] or not cur > 0:  # a (re)start: the control brings it up
