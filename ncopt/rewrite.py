@@ -207,19 +207,20 @@ def _insertions(prog, appended: dict, style) -> Edits:
     mark[f_lines] = True
     lines = np.flatnonzero(mark)
     sep = style.separator
-    s_part = [f"{sep}S{t}" for t in s_text]
-    f_part = [f"{sep}F{t}" for t in f_text]
     if len(s_lines) == lines.size and len(f_lines) == lines.size:  # both on every line
-        pairs = zip(s_part, f_part) if style.s_before_f else zip(f_part, s_part)
-        texts = [a + b for a, b in pairs]
+        texts = ([f"{sep}S{a}{sep}F{b}" for a, b in zip(s_text, f_text)] if style.s_before_f
+                 else [f"{sep}F{b}{sep}S{a}" for a, b in zip(s_text, f_text)])
     else:
+        s_part = [f"{sep}S{t}" for t in s_text]
+        f_part = [f"{sep}F{t}" for t in f_text]
         first, second = (s_lines, s_part), (f_lines, f_part)
         if not style.s_before_f:
             first, second = second, first
-        texts = [""] * lines.size
+        joined = np.full(lines.size, "", dtype=object)
         for part_lines, parts in (first, second):
-            for pos, t in zip(np.searchsorted(lines, part_lines).tolist(), parts):
-                texts[pos] += t
+            pos = np.searchsorted(lines, part_lines)
+            joined[pos] = joined[pos] + np.array(parts, dtype=object)
+        texts = joined.tolist()
     last_word = np.searchsorted(prog.word_line, lines, side="right") - 1
     on_line = (last_word >= 0) & (prog.word_line[np.maximum(last_word, 0)] == lines)
     at = np.where(on_line, prog.word_end[np.maximum(last_word, 0)], prog.line_start[lines])
