@@ -137,10 +137,11 @@ class _LineTable:
 def ffill(values: np.ndarray, initial: float = np.nan) -> np.ndarray:
     """Forward-fill NaNs with the last value before them (``initial`` at the start)."""
     n = values.shape[0]
-    ok = ~np.isnan(values)
-    idx = np.where(ok, np.arange(n), -1)
+    idx = np.arange(n, dtype=np.int32 if n < 2**31 else np.int64)
+    idx[np.isnan(values)] = -1
     np.maximum.accumulate(idx, out=idx)
-    out = np.where(idx >= 0, values[np.maximum(idx, 0)], initial)
+    out = np.asarray(values, dtype=np.float64)[np.maximum(idx, 0)]
+    out[idx < 0] = initial
     return out
 
 
