@@ -200,9 +200,11 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     edits = plan_edits(prog, targets, s_style, f_style)
     stamp = stamp_edit(prog, plans) if job.stamp else None
     out = apply_edits(text, edits + ([stamp] if stamp else ()))
+    counts = (len(edits), edits.s_words, edits.f_words)
+    del edits  # ~800k strings at 1M blocks: not kept through the verification's peak
     if job.verify:
         verify(prog, tp, out, targets, s_style, f_style, job, found.name)
-    summary = _summary(prog, tp, idx, plans, skipped, edits, mesh_edge)
+    summary = _summary(prog, tp, idx, plans, skipped, counts, mesh_edge)
     control = job.control or found.name
     source = job.control_from if job.control else (
         f"detected from {len(found.marks)} mark{'s' if len(found.marks) > 1 else ''}"
@@ -359,7 +361,8 @@ def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_s
     out_prog = read_text(out, prog.path, job, detected)
     in_stamps = sorted(st.line for st in read_stamps(prog).values())
     out_stamps = sorted(st.line for st in read_stamps(out_prog).values())
-    if _masked_without(out_prog, out_stamps) != _masked_without(prog, in_stamps):
+    same = _masked_without(out_prog, out_stamps) == _masked_without(prog, in_stamps)
+    if not same:
         raise VerificationError("the rewrite changed more than S and F words; nothing written",
                                 prog.path)
     shifted = replace(targets, line=targets.line + (len(out_stamps) - len(in_stamps)))
@@ -384,7 +387,8 @@ def _masked_without(prog: Program, drop: list) -> str:
     return "".join(line + "\n" for i, line in enumerate(head) if i not in drop) + rest
 
 
-def _summary(prog, tp, idx, plans, skipped, edits, mesh_edge) -> Summary:
+def _summary(prog, tp, idx, plans, skipped, counts, mesh_edge) -> Summary:
+    """``counts``: (edits, S words, F words) written."""
     fp = idx.first_point
     f_orig = tp.feed_mm_min[fp]
     before = after = 0.0
@@ -395,11 +399,11 @@ def _summary(prog, tp, idx, plans, skipped, edits, mesh_edge) -> Summary:
         after += float(np.sum(p.blocks.length_mm[c] / np.maximum(p.f_mm_min[c], 1e-9)))
         cutting_blocks += int(c.sum())
         planned_blocks += int(p.blocks.planned.sum())
-    s_words, f_words = edits.s_words, edits.f_words
+    n_edits, s_words, f_words = counts
     first = plans[0]
     summary = Summary(
         blocks=prog.n_lines, moving_blocks=int(fp.shape[0]), cutting_blocks=cutting_blocks,
-        planned_blocks=planned_blocks, s_words=s_words, f_words=f_words, edits=len(edits),
+        planned_blocks=planned_blocks, s_words=s_words, f_words=f_words, edits=n_edits,
         cut_time_before_min=before, cut_time_after_min=after, vc_m_min=first.cutting.vc_m_min,
         fz_mm=first.cutting.fz_mm, max_s_rpm=max(float(np.max(p.s_cmd_rpm[p.blocks.planned], initial=0.0)) for p in plans),
         tools=tuple((p.tool, _describe(p.cutter), p.source) for p in plans),

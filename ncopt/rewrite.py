@@ -269,5 +269,6 @@ def masked(prog: Program) -> str:
     cut = np.zeros(raw.size + 1, dtype=np.int8)  # +1 where a removal starts, -1 where it ends
     cut[start] = 1
     cut[end] -= 1  # a removal may start where the previous one ends: the two sum to 0
-    keep = np.cumsum(cut[:-1], dtype=np.int8) == 0
+    np.cumsum(cut, dtype=np.int8, out=cut)
+    keep = cut[:-1] == 0
     return raw[keep].tobytes().decode("latin-1")
