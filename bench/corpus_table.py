@@ -260,8 +260,10 @@ def main(argv=None) -> int:
     if args.judge:
         accepted = [r for r in rows if r.rs274_accepts]
         print(f"rs274 accepts {len(accepted)} of {len(rows)} originals; of those ncopt refuses "
-              f"{sum(r.status == 'refused' for r in accepted)}: "
-              + (", ".join(r.file for r in accepted if r.status == "refused") or "none"))
+              f"to read {sum(r.status == 'refused' for r in accepted)}: "
+              + (", ".join(r.file for r in accepted if r.status == "refused") or "none")
+              + f"; refuses to rewrite {sum(r.status == 'rewrite-refused' for r in accepted)}: "
+              + (", ".join(r.file for r in accepted if r.status == "rewrite-refused") or "none"))
         broken = [r for r in rows if "REWRITE" in r.rs274]
         print(f"rewrites rs274 rejects or moves differently: {len(broken)}"
               + (": " + ", ".join(r.file for r in broken) if broken else ""))
