@@ -142,9 +142,12 @@ def rewrite_file(path: str | Path, job: Job, mesh_path: str | Path | None = None
     # 1M triangles, 5.0 s one after the other, 4.2 s together).  No reference to the
     # future is kept here: rewrite_text drops the index (~700 MB at 1M triangles) as
     # soon as the contacts are found.
-    with ThreadPoolExecutor(1, thread_name_prefix="ncopt-mesh") as pool:
+    pool = ThreadPoolExecutor(1, thread_name_prefix="ncopt-mesh")
+    try:
         return rewrite_text(data.decode("latin-1"), job, str(path),
                             pool.submit(_mesh_index, mesh_path))
+    finally:  # an error in the program is reported without waiting for the mesh
+        pool.shutdown(wait=False, cancel_futures=True)
 
 
 def _mesh_index(mesh_path: str | Path) -> MeshIndex:

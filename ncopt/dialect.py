@@ -80,6 +80,8 @@ in all three, and so does a zero.
 
 _DECIMAL_ADDRESSES = frozenset(b"XYZUVWIJKQRABCF")  # Fanuc: addresses that take a point
 _ROTARY = frozenset(b"ABC")
+_CYCLES = (73.0, 74.0, 76.0, 81.0, 82.0, 83.0, 84.0, 85.0, 86.0, 87.0, 88.0, 89.0)
+_MOTION_AND_CYCLES = (0.0, 1.0, 2.0, 3.0, 80.0) + _CYCLES  # G80 and G0-G3 end a cycle
 # units per least input increment (metric mm or deg, inch) of each increment
 # system: dividing by an exact integer keeps X1000 -> 1.0 and A90 -> 0.09 exact
 _PER_UNIT = {IS_B: (1000.0, 10000.0), IS_C: (10000.0, 100000.0)}
@@ -170,8 +172,12 @@ def resolve_decimal_point(program: Program, dialect: str | None,
     Fanuc dialect without a ``convention`` and with a word whose value depends
     on it, raises :class:`~ncopt.errors.NcParseError` at that word (exit code
     3 in the CLI); otherwise returns the program read in ``convention``
-    (unchanged when it is None or ``calculator``).
+    (unchanged when it is None or ``calculator``).  ``is-b``/``is-c`` for a
+    program of another dialect raise :class:`~ncopt.errors.UsageError`: no
+    other control reads increments, and a machine profile's setting must not
+    shrink a Sinumerik program's geometry a thousandfold.
     """
+    check_convention_applies(dialect, convention, program.path)
     issue = decimal_point_issue(program, dialect, convention)
     if issue is not None:
         src = program.line_text(issue.line - 1)
@@ -179,6 +185,16 @@ def resolve_decimal_point(program: Program, dialect: str | None,
         raise NcParseError(issue.message, path=program.path, line=issue.line,
                            column=issue.column, context=context)
     return program if convention is None else apply_decimal_point(program, convention)
+
+
+def check_convention_applies(dialect: str | None, convention: str | None,
+                             path: str | None = None) -> None:
+    """Raise UsageError for ``is-b``/``is-c`` with a dialect other than Fanuc."""
+    _check_convention(convention)
+    if convention not in (None, CALCULATOR) and dialect != FANUC:
+        raise UsageError(f"--decimal-point {convention} is how a Fanuc control reads values; "
+                         f"this program is read as {dialect or GENERIC}: give --dialect fanuc if "
+                         "it runs on a Fanuc control, else leave --decimal-point out", path)
 
 
 def _check_convention(convention: str | None) -> None:
@@ -223,6 +239,12 @@ def _without_point(program: Program) -> np.ndarray:
     value = program.word_value
     cand = np.isin(letter, list(_DECIMAL_ADDRESSES)) & np.isfinite(value)
     cand &= value == np.floor(np.where(cand, value, 0.0))
+    k_word = cand & (letter == ord("K"))
+    if k_word.any():  # in a drilling cycle K counts repeats, a whole number in every convention
+        g = letter == ord("G")
+        motion = _ffill_lines(program.n_lines, program.word_line,
+                              g & np.isin(value, _MOTION_AND_CYCLES), value, 0.0)
+        cand[k_word & np.isin(motion[program.word_line], _CYCLES)] = False
     idx = np.flatnonzero(cand)
     if idx.size == 0:
         return cand

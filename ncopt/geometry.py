@@ -126,12 +126,27 @@ def _closest_on_triangles(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
         out = np.where(on[:, None], a + t[:, None] * ab, out)  # edge AB
     out = np.where(((d3 >= 0) & (d4 <= d3))[:, None], b, out)  # corner B
     out = np.where(((d1 <= 0) & (d2 <= 0))[:, None], a, out)  # corner A
-    bad = ~np.all(np.isfinite(out), axis=1)
-    if np.any(bad):
-        corners = tri[bad]
-        k = np.argmin(np.linalg.norm(corners - p[bad, None, :], axis=2), axis=1)
-        out[bad] = corners[np.arange(k.size), k]
+    bad = ~np.all(np.isfinite(out), axis=1) & np.all(np.isfinite(p), axis=1)
+    if np.any(bad):  # a zero-area triangle: the nearest point of its three edges
+        out[bad] = _closest_on_edges(p[bad], tri[bad])
     return out
+
+
+def _closest_on_edges(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Closest point to ``p[i]`` on the three edge segments of ``tri[i]``."""
+    best, best_d = None, None
+    for i, j in ((0, 1), (1, 2), (2, 0)):
+        a, d = tri[:, i], tri[:, j] - tri[:, i]
+        dd = _dot(d, d)
+        t = np.clip(np.divide(_dot(p - a, d), dd, out=np.zeros_like(dd), where=dd > 0), 0.0, 1.0)
+        q = a + t[:, None] * d
+        dist = np.linalg.norm(p - q, axis=1)
+        if best is None:
+            best, best_d = q, dist
+        else:
+            closer = dist < best_d
+            best[closer], best_d[closer] = q[closer], dist[closer]
+    return best
 
 
 def _available_cpus() -> int:
@@ -255,7 +270,10 @@ class MeshIndex:
         self._scene.find_closest_points(np.asfortranarray(P, dtype=np.float32),
                                         np.full(P.shape[0], np.inf, np.float32), found)
         face = np.fromiter((hit.primitive_index for hit in found), np.int64, P.shape[0])
+        lost = face < 0  # a non-finite query point: no face, no point
+        face[lost] = 0
         point = _closest_on_triangles(P, self.mesh.V[self.mesh.F[face]])
+        point[lost] = np.nan
         return np.linalg.norm(P - point, axis=1), face, point
 
     def closest(self, points_mm: np.ndarray) -> Closest:

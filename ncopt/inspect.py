@@ -6,7 +6,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .dialect import apply_decimal_point, decimal_point_issue, detect
+from .dialect import apply_decimal_point, check_convention_applies, decimal_point_issue, detect
 from .interp import interpret
 from .model import LineKind, Motion
 from .parse import parse_text
@@ -53,6 +53,7 @@ def inspect_text(text: str, path: str = "<input>", *, dialect: str | None = None
     """
     prog = parse_text(text, path, dialect=dialect)
     found = detect(text)
+    check_convention_applies(dialect or found.name, decimal_point, path)
     issue = decimal_point_issue(prog, dialect or found.name, decimal_point)
     if decimal_point is not None:
         prog = apply_decimal_point(prog, decimal_point)

@@ -309,7 +309,7 @@ class Edit(NamedTuple):
     text: str
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Edits:
     """Many edits as columns (a rewrite makes ~1M; one object each would cost seconds).
 

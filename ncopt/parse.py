@@ -251,7 +251,10 @@ def _fast_path_chunked(raw, line_start, content_end, classes):
     return np.concatenate([d[0] for d in done]), np.concatenate([d[1] for d in done]), words
 
 
-_THREADS = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+# Two threads take most of the gain; more would multiply the chunks' memory (and
+# batch runs one process per job).
+_THREADS = min(2, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+               else (os.cpu_count() or 1))
 
 
 def _fast_path(raw, line_start, content_end, classes):

@@ -363,7 +363,8 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
     starts = blocks.spindle_start.tolist()
     step = opts.min_rpm_step
     lo_int = math.ceil(s_lo)
-    top = math.floor(s_hi) if math.isfinite(s_hi) else math.inf
+    # the spindle's lowest speed wins over the feed-limited top (F is capped there anyway)
+    top = max(math.floor(s_hi), lo_int) if math.isfinite(s_hi) else math.inf
     n = len(s_plan)
     cmd_out, low_out, high_out = [0.0] * n, [0.0] * n, [0.0] * n
     interval_s = opts.min_s_interval_ms / 1000.0

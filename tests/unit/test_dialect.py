@@ -142,7 +142,7 @@ def test_resolve_refuses_an_unknown_convention_with_a_located_error():
 
 @pytest.mark.parametrize("dialect, convention, x", [
     (FANUC, IS_B, 25.0), (FANUC, IS_C, 2.5), (FANUC, CALCULATOR, 25000.0),
-    (LINUXCNC, None, 25000.0), (None, None, 25000.0), (LINUXCNC, IS_B, 25.0),
+    (LINUXCNC, None, 25000.0), (None, None, 25000.0), (LINUXCNC, CALCULATOR, 25000.0),
 ])
 def test_resolve_reads_the_values_in_the_convention(dialect, convention, x):
     prog = parse_text("G1 X25000 F300\n", "part.nc")
@@ -177,3 +177,22 @@ def test_inspect_reports_the_issue_and_reads_a_given_convention():
     known = inspect_text(text, "f.nc", dialect=FANUC, decimal_point=IS_B)
     assert not any("decimal point" in w for w in known.warnings)
     assert known.cut_length_mm == pytest.approx(6.0 + np.hypot(25.0, 12.5))
+
+
+@pytest.mark.parametrize("dialect", [LINUXCNC, None, "sinumerik"])
+def test_increments_are_refused_for_a_program_of_another_control(dialect):
+    """A machine profile's is-b must not shrink a non-Fanuc program's geometry 1000 times."""
+    prog = parse_text("G1 X1000 F300\n", "part.mpf")
+    with pytest.raises(UsageError, match="--decimal-point is-b is how a Fanuc control"):
+        resolve_decimal_point(prog, dialect, IS_B)
+    with pytest.raises(UsageError, match="give --dialect fanuc"):
+        inspect_text("G1 X1000 F300\n", "part.mpf", dialect=dialect, decimal_point=IS_C)
+
+
+def test_k_counts_repeats_in_a_drilling_cycle():
+    """Fanuc G81..G89 K3: three holes, in every convention; K of an arc is a length."""
+    text = "%\nO1\nG21 G90\nG81 X1. Y1. Z-2. R1. K3 F100\nX5.\nG80\nG3 X2. Y0. I1. K2\n%\n"
+    issue = issue_of(text)
+    assert issue is not None and (issue.line, issue.column) == (7, 16)  # the arc's K2, not K3
+    prog = apply_decimal_point(parse_text(text), IS_B)
+    assert ("K", 3.0) in values(prog) and ("K", 0.002) in values(prog)

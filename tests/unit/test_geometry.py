@@ -345,3 +345,15 @@ def test_closest_matches_brute_force_distance(sphere_index):
     on_face = geometry._closest_on_triangles(points, sphere_index.mesh.V[sphere_index.mesh.F[got.face]])
     np.testing.assert_array_equal(on_face, got.point_mm)
     np.testing.assert_allclose(np.linalg.norm(points - got.point_mm, axis=1), got.dist_mm)
+
+
+def test_a_triangle_with_two_equal_corners_gives_the_closest_point_of_its_edge():
+    tri = np.array([[[0.0, 0, 0], [0.0, 0, 0], [10.0, 0, 0]]])
+    p = np.array([[5.0, 1.0, 0.0]])
+    np.testing.assert_allclose(geometry._closest_on_triangles(p, tri), [[5.0, 0.0, 0.0]])
+
+
+def test_a_non_finite_query_point_has_no_closest_point(sphere_index):
+    got = sphere_index.closest(np.array([[np.nan, 0.0, 30.0], [0.0, 0.0, 30.0]]))
+    assert np.isnan(got.dist_mm[0]) and np.all(np.isnan(got.point_mm[0]))
+    assert np.isfinite(got.dist_mm[1])

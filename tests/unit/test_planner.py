@@ -325,3 +325,17 @@ def test_no_s_word_above_the_feed_limited_top_after_a_faster_unplanned_block():
     em = planner.emit_rpm(profile, b, incs, LOOSE, s_lo, 3.0, s_hi=s_hi)
     assert np.all(em.s_cmd_rpm[1:] <= 5000.0)
     assert np.all(em.s_high_rpm[1:] <= profile.s_rpm[:-1] + 1.0)  # the real speed falls
+
+
+def test_the_lowest_speed_wins_over_a_feed_limited_top_below_it():
+    """--min-rpm 3000 with a feed limit of 200 mm/min (fz 0.1 x 2: top 1000 RPM): the
+    S words stay at the spindle's lowest speed, never under it (F is capped anyway)."""
+    n = 6
+    b = planner.Blocks(length_mm=np.ones(n), req_rpm=np.full(n, 500.0),
+                       cutting=np.ones(n, bool), planned=np.ones(n, bool),
+                       time_s=np.ones(n), fixed_rpm=np.zeros(n))
+    machine = Machine(accel_rad_s2=A_RPM_S * 2 * math.pi / 60, max_rpm=12000.0,
+                      min_rpm=3000.0, max_feed_mm_min=200.0)
+    em, f, _ = planner.plan(b, machine, CUT, TEETH, LOOSE)
+    assert np.all(em.s_cmd_rpm == 3000.0)
+    assert np.all(f <= 200.0 + 1e-9)
