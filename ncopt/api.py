@@ -138,8 +138,8 @@ def rewrite_file(path: str | Path, job: Job, mesh_path: str | Path | None = None
     if mesh_path is None:
         return rewrite_text(data.decode("latin-1"), job, str(path))
     # The mesh loads in a thread while the program is parsed and interpreted (STL
-    # reading, the BVH and libigl's normals run mostly outside the GIL: 1M blocks and
-    # 1M triangles, 5.0 s one after the other, 4.2 s together).  No reference to the
+    # reading and libigl's normals run largely outside the GIL, fcpw's BVH build
+    # does not: 1M blocks and 1M triangles, 5.0 s one after the other, 4.2 s together).  No reference to the
     # future is kept here: rewrite_text drops the index (~700 MB at 1M triangles) as
     # soon as the contacts are found.
     pool = ThreadPoolExecutor(1, thread_name_prefix="ncopt-mesh")
@@ -356,10 +356,11 @@ def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_s
            job: Job, detected: str | None = None) -> None:
     """The checks run after every rewrite; raises VerificationError, writes nothing.
 
-    One parse of the output (as the job reads the input) serves all three: the stamp lines are whole comment lines
-    at the top, so masking keeps the line structure and every target line moves by the
-    same count.  With S and F masked the output equals the input, so every geometry
-    word is the input's own: the toolpath cannot have changed.
+    One parse of the output (read as the input was) serves all three: the stamp
+    lines are whole comment lines at the top, so masking keeps the line structure
+    and every target line moves by the same count.  With S and F masked the output
+    equals the input, so every geometry word is the input's own: the toolpath
+    cannot have changed.
     """
     out_prog = read_text(out, prog.path, job, detected)
     in_stamps = sorted(st.line for st in read_stamps(prog).values())

@@ -3,7 +3,8 @@
 Three-axis tools (axis +Z).  Callers give cutter centres: ball centres, or the
 centres of a bull-nose's torus core circle (programmed point +
 ``tools.center_offset_mm``).  The CC point is the mesh point closest to the
-centre (fcpw's BVH finds the face, float64 numpy the point on it), for a bull-nose to its core disc (radius R - r).
+centre (fcpw's BVH finds the face, float64 numpy the point on it), for a
+bull-nose to its core disc (radius R - r).
 
 Normals (``normals=``): ``"facet"``; ``"center"`` (CC->centre: the facet
 normal too wherever the CC point is inside a facet, so both jump from facet to
@@ -52,8 +53,6 @@ run chunk by chunk.
 from __future__ import annotations
 
 import functools
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 from typing import NamedTuple
@@ -66,6 +65,7 @@ from ncopt import tools
 from ncopt.errors import MeshError
 from ncopt.mesh import EdgeLengths, Mesh, load_stl, mesh_from_triangles, mesh_resolution_mm  # noqa: F401
 from ncopt.model import Contacts, Cutter
+from ncopt.threads import available_cpus, map_in_threads
 
 __all__ = ["NORMAL_METHODS", "Closest", "EdgeLengths", "Mesh", "MeshContacts", "MeshIndex",
            "contacts_from_mesh", "load_stl", "mesh_contacts", "mesh_from_triangles",
@@ -149,12 +149,6 @@ def _closest_on_edges(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
     return best
 
 
-def _available_cpus() -> int:
-    if hasattr(os, "sched_getaffinity"):
-        return len(os.sched_getaffinity(0))
-    return os.cpu_count() or 1
-
-
 def _unit(v: np.ndarray) -> np.ndarray:
     """Rows scaled to unit length; zero rows stay zero."""
     n = np.linalg.norm(v, axis=-1, keepdims=True)
@@ -206,7 +200,7 @@ class MeshIndex:
         self.feature_angle_deg = float(feature_angle_deg)
         self.pool_min_points = pool_min_points
         self.chunk_points = max(1, int(chunk_points))
-        self.processes = int(processes or _available_cpus())
+        self.processes = int(processes or available_cpus())
         self._scene = _closest_point_scene(mesh)
         P = mesh.V[mesh.F]
         self.face_normal = _unit(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]))
@@ -246,13 +240,9 @@ class MeshIndex:
         arrays = tuple(np.ascontiguousarray(a) for a in arrays)
         m = arrays[0].shape[0]
         bounds = [(lo, min(lo + self.chunk_points, m)) for lo in range(0, m, self.chunk_points)]
-        pool = (pool and self.pool_min_points is not None and m >= self.pool_min_points
-                and self.processes > 1 and len(bounds) > 1)
-        if not pool:
-            parts = [fn(*(a[lo:hi] for a in arrays)) for lo, hi in bounds] or [fn(*arrays)]
-        else:
-            with ThreadPoolExecutor(min(self.processes, len(bounds))) as workers:
-                parts = list(workers.map(lambda b: fn(*(a[b[0]:b[1]] for a in arrays)), bounds))
+        pool = pool and self.pool_min_points is not None and m >= self.pool_min_points
+        parts = map_in_threads(lambda b: fn(*(a[b[0]:b[1]] for a in arrays)), bounds,
+                               self.processes if pool else 1) or [fn(*arrays)]
         return tuple(np.concatenate(col) for col in zip(*parts))
 
     def _query(self, P: np.ndarray) -> tuple:

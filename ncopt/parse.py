@@ -16,9 +16,7 @@ A line one dialect's grammar refuses but another reads (``R1=5`` under
 
 from __future__ import annotations
 
-import os
 import re
-from concurrent.futures import ThreadPoolExecutor
 from functools import lru_cache
 from pathlib import Path
 
@@ -29,6 +27,7 @@ from lark.exceptions import UnexpectedInput
 from .dialect import DIALECTS, FANUC, GENERIC, GRBL
 from .errors import NcParseError, UsageError
 from .model import LineKind, Program
+from .threads import available_cpus, map_in_threads
 
 # byte classes of the fast path
 _SPACE, _LETTER, _DIGIT, _SIGN, _POINT, _NL, _OTHER = range(7)
@@ -244,17 +243,14 @@ def _fast_path_chunked(raw, line_start, content_end, classes):
                               content_end[a:b] - base, classes)
         return f, bl, (w[0] + a, w[1], w[2], w[3] + base, w[4] + base, w[5] + base)
 
-    starts = range(0, n_lines, FAST_CHUNK_LINES)
-    with ThreadPoolExecutor(min(_THREADS, len(starts))) as pool:
-        done = list(pool.map(chunk, starts))
+    done = map_in_threads(chunk, range(0, n_lines, FAST_CHUNK_LINES), _THREADS)
     words = tuple(np.concatenate([d[2][k] for d in done]) for k in range(6))
     return np.concatenate([d[0] for d in done]), np.concatenate([d[1] for d in done]), words
 
 
 # Two threads take most of the gain; more would multiply the chunks' memory (and
 # batch runs one process per job).
-_THREADS = min(2, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
-               else (os.cpu_count() or 1))
+_THREADS = min(2, available_cpus())
 
 
 def _fast_path(raw, line_start, content_end, classes):

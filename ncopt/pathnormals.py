@@ -20,14 +20,13 @@ it is taken as zero and reported.
 
 from __future__ import annotations
 
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from .model import Contacts, Cutter
+from .threads import available_cpus, map_in_threads
 from .tools import r_eff_mm
 
 K_NEIGHBOURS = 12  # enough for 4-5 points per pass on each side at CAM-typical spacings
@@ -88,14 +87,8 @@ def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarra
 
     # each thread queries and fits its own chunks: scipy's query and numpy's loops
     # release the GIL, so the fit of one chunk overlaps the query of the next
-    threads = len(os.sched_getaffinity(0)) if workers == -1 and hasattr(os, "sched_getaffinity") \
-        else (os.cpu_count() or 1) if workers == -1 else max(int(workers), 1)
-    starts = range(0, idx.size, CHUNK)
-    if threads > 1 and len(starts) > 1:
-        with ThreadPoolExecutor(min(threads, len(starts))) as pool:
-            near = np.concatenate(list(pool.map(chunk, starts)))
-    else:
-        near = np.concatenate([chunk(a) for a in starts])
+    threads = available_cpus() if workers == -1 else workers
+    near = np.concatenate(map_in_threads(chunk, range(0, idx.size, CHUNK), threads))
     stepover = float(np.median(near[np.isfinite(near)])) if np.isfinite(near).any() else float("nan")
     return PathNormals(normal, confidence, stepover)
 

@@ -357,3 +357,13 @@ def test_a_non_finite_query_point_has_no_closest_point(sphere_index):
     got = sphere_index.closest(np.array([[np.nan, 0.0, 30.0], [0.0, 0.0, 30.0]]))
     assert np.isnan(got.dist_mm[0]) and np.all(np.isnan(got.point_mm[0]))
     assert np.isfinite(got.dist_mm[1])
+
+
+def test_map_in_threads_keeps_order_and_runs_serially_when_asked():
+    from ncopt.threads import map_in_threads
+
+    assert map_in_threads(lambda x: x * x, range(20), 4) == [x * x for x in range(20)]
+    assert map_in_threads(lambda x: x, [], 4) == []
+    seen = []
+    map_in_threads(seen.append, range(5), 1)
+    assert seen == list(range(5))  # one thread: in order, in this thread
