@@ -41,7 +41,7 @@ FAST = ["--sample", "1.0"]
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 SIM_KEYS = {"cutting_time_min", "rapid_time_min", "fz_in_band_pct", "fz_max_over_pct",
             "vc_max_over_pct", "max_rpm", "s_words"}
-STAMP = re.compile(r"^\s*[(;]\s*ncopt \S+ T-?\d+ vc=")
+STAMP = re.compile(r"^\s*[(;]\s*ncopt \S+ T-?\d+ (?:op=\d+ )?vc=")
 
 
 # ------------------------------------------------------------------ helpers ----
@@ -661,7 +661,7 @@ def test_rewrite_with_the_shipped_profiles(bowl_opt):
     assert "ncopt: vc 70.0 m/min, fz 0.1000 mm, highest S 15000 RPM" in lines
     assert any(line.startswith("ncopt: sinumerik control: ") for line in lines)
     text = out.read_bytes().decode("latin-1")
-    assert re.match(r"; ncopt \S+ T4 vc=70\.0+ fz=0\.10+ D=16 r=8 z=2 ", text)
+    assert re.match(r"; ncopt \S+ T4 op=0 vc=70\.0+ fz=0\.10+ D=16mm r=8mm z=2 band=2 ", text)
     prog = parse_text(text)
     s = prog.word_value[prog.word_letter == ord("S")]
     assert s.max() == 15000 and s.size > 10000
