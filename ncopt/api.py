@@ -61,6 +61,7 @@ class Job:
     stamp: bool = True
     operations: tuple | None = None  # --operations: names to plan (or "all"); None: by kind
     stock_mm: float = 0.0  # --stock: allowance the program leaves on the mesh, mm
+    diameter_bare: bool = False  # --diameter was a bare number (read as mm)
     shape_named: bool = False  # the user named the cutter's shape (not --diameter alone)
 
 
@@ -216,14 +217,15 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     mesh_edge = float(mesh_index.edge_lengths.median_mm) if mesh_index else None
     del mesh_index  # the largest object of a big job; verification needs memory too
     targets = _targets(prog, tp, idx, work, f_style)
-    edits = plan_edits(prog, targets, s_style, f_style, work.scope.editable)
+    consumers = _with_fixed_lines(tp, idx, work.scope, targets)
+    edits = plan_edits(prog, consumers, s_style, f_style, work.scope.editable)
     stamp = (stamp_edit(prog, work.plans, 100.0 * job.options.fz_tolerance)
              if job.stamp else None)
     out = apply_edits(text, edits + ([stamp] if stamp else ()))
     counts = (len(edits), edits.s_words, edits.f_words)
     del edits  # ~800k strings at 1M blocks: not kept through the verification's peak
     if job.verify:
-        verify(prog, tp, out, targets, s_style, f_style, job, found.name, work.scope)
+        verify(prog, tp, out, consumers, s_style, f_style, job, found.name, work.scope)
     summary = _summary(prog, tp, idx, work, targets, counts, mesh_edge, job)
     control = job.control or found.name
     source = job.control_from if job.control else (
@@ -257,24 +259,28 @@ def _targets(prog: Program, tp: Toolpath, idx: planner.BlockIndex, work: "Work",
         planned_f = np.floor(p.f_mm_min / unit[lo:hi] * scale + 1e-6) / scale
         f_value[lo:hi] = np.where(np.isfinite(p.f_mm_min), planned_f, f_value[lo:hi])
     f_value[~(f_value > 0)] = np.nan  # never F0 or below (controls reject it)
-    line, s_value, f_value = _with_fixed_lines(prog, tp, idx, work.scope, s_value, f_value)
-    return Targets(line=line, s_value=s_value, f_value=f_value)
+    return Targets(line=idx.line, s_value=s_value, f_value=f_value)
 
 
-def _with_fixed_lines(prog, tp, idx, scope, s_value, f_value):
-    """Add the fixed lines that do not move (canned cycles, calls) as consumers of the
-    program's own S and F."""
+def _with_fixed_lines(tp: Toolpath, idx: planner.BlockIndex, scope: Scope,
+                      targets: Targets) -> Targets:
+    """The block targets and the fixed lines that do not move (canned cycles, calls):
+    consumers of the program's own S and F, which must be in force there too."""
     ls = tp.lines
     extra = np.flatnonzero(scope.fixed)
     extra = extra[~np.isin(extra, idx.line)]
     if extra.size == 0:
-        return idx.line, s_value, f_value
-    s_x = np.where(ls.s_known[extra] & (ls.s_rpm[extra] > 0), ls.s_rpm[extra], np.nan)
-    f_x = np.where(ls.f_known[extra] & (ls.f_prog[extra] > 0), ls.f_prog[extra], np.nan)
-    line = np.concatenate((idx.line, extra))
+        return targets
+    # a call uses what is in force when it starts: known unless lost before its line
+    prev = np.maximum(extra - 1, 0)
+    s_known = np.where(ls.call[extra], ls.s_known[prev] | (extra == 0), ls.s_known[extra])
+    f_known = np.where(ls.call[extra], ls.f_known[prev] | (extra == 0), ls.f_known[extra])
+    s_x = np.where(s_known & (ls.s_rpm[extra] > 0), ls.s_rpm[extra], np.nan)
+    f_x = np.where(f_known & (ls.f_prog[extra] > 0), ls.f_prog[extra], np.nan)
+    line = np.concatenate((targets.line, extra))
     order = np.argsort(line, kind="stable")
-    return (line[order], np.concatenate((s_value, s_x))[order],
-            np.concatenate((f_value, f_x))[order])
+    return Targets(line[order], np.concatenate((targets.s_value, s_x))[order],
+                   np.concatenate((targets.f_value, f_x))[order])
 
 
 def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_style,
@@ -448,17 +454,38 @@ def _op_row(op, k, tp, work, t_before, t_after) -> OpRow:
 
 def _plan_warnings(prog, tp, work, job) -> tuple:
     out = []
+    inch = tp.line_inch is not None and bool(tp.line_inch.any())
+    if inch and job.cutter is not None and job.diameter_bare and job.cutter.diameter_mm < 2.0:
+        d = job.cutter.diameter_mm
+        out.append(f"{prog.path}: --diameter {d:g} is read as mm (a {d:g} mm cutter) but the "
+                   f"program is in inches: for a {d:g} inch cutter pass --diameter {d:g}in")
+    for p in work.plans:
+        s0 = p.s0_rpm
+        if s0 > job.machine.max_rpm:
+            op = work.ops[p.op]
+            reached = p.cutting.vc_m_min * job.machine.max_rpm / s0
+            out.append(f"{prog.path}: {op.name}: the program's S{s0:.0f} is above the machine's "
+                       f"{job.machine.max_rpm:.0f} RPM: it was written for a faster spindle; "
+                       f"at {job.machine.max_rpm:.0f} RPM vc reaches {reached:.1f} of its "
+                       f"{p.cutting.vc_m_min:.1f} m/min where the cutter cuts at its full diameter")
     for p in work.plans:
         if p.over_target[0]:
             op = work.ops[p.op]
             out.append(f"{prog.path}: {op.name} (T{p.tool}): vc up to {p.over_target[1]:.1f} % "
                        f"above its target on {p.over_target[0]} cutting blocks, where the "
                        "spindle is still falling from an S that ncopt could not plan")
+        if p.coarse_lines is not None and p.coarse_lines.size:
+            op = work.ops[p.op]
+            first = int(p.coarse_lines[0]) + 1
+            out.append(f"{prog.path}:{first}: {op.name}: {p.coarse_lines.size} cutting blocks keep "
+                       "their S and F: their feed is too low for the resolution of the "
+                       "program's F words to hold fz within its band (write F with more "
+                       "decimals to plan them)")
         if p.reduced.any():
             op = work.ops[p.op]
-            out.append(f"{prog.path}: {op.name}: {int(p.reduced.sum())} blocks at another feed "
-                       f"than the cutting feed {p.cutting_feed_mm_min:g} mm/min (plunges, ramps, "
-                       "lead-ins, links) keep their programmed feed per tooth: F scaled with S")
+            out.append(f"{prog.path}: {op.name}: {int(p.reduced.sum())} blocks off the cutting "
+                       f"feed {p.cutting_feed_mm_min:g} mm/min or in the air (plunges, ramps, "
+                       "lead-ins, links) keep the program's feed per tooth: F scaled with S")
     return tuple(out)
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import sys
 from dataclasses import replace
 from enum import IntEnum
@@ -47,10 +48,11 @@ err = Console(stderr=True, highlight=False, soft_wrap=True)
 Mesh = Annotated[Optional[Path], typer.Option(
     "--mesh", help="Part mesh (STL, binary or ASCII), mm. Without it, normals come from "
     "the toolpath.")]
-Diameter = Annotated[Optional[float], typer.Option(
-    "--diameter", help="Cutter diameter D, mm (default: from the program's tool comments).")]
-CornerRadius = Annotated[Optional[float], typer.Option(
-    "--corner-radius", help="Bull-nose corner radius r, mm (default: a ball).")]
+Diameter = Annotated[Optional[str], typer.Option(
+    "--diameter", help="Cutter diameter D: mm, or with a unit (6.35mm, 0.25in) (default: "
+    "from the program's tool comments).")]
+CornerRadius = Annotated[Optional[str], typer.Option(
+    "--corner-radius", help="Bull-nose corner radius r: mm, or with a unit (default: a ball).")]
 Teeth = Annotated[int, typer.Option("--teeth", help="Number of teeth z (matters with --fz).")]
 Vc = Annotated[Optional[float], typer.Option(
     "--vc", help="Cutting speed target, m/min (default: the program's S at the nominal D).")]
@@ -91,7 +93,8 @@ DecimalPoint = Annotated[Optional[str], typer.Option(
 MethodName = Annotated[str, typer.Option(
     "--method", help="contact: R_eff at the contact point (default); material: where the "
     "edge meets the remaining material (the paper's second method).")]
-Ap = Annotated[float, typer.Option("--ap", help="Height of the remaining material, mm.")]
+Ap = Annotated[str, typer.Option("--ap", help="Height of the remaining material: mm, or "
+                                  "with a unit (0.008in).")]
 AllowanceAlong = Annotated[str, typer.Option(
     "--allowance-along", help="normal (default) or axis: the remaining material is offset "
     "along the surface normal or the tool axis (finishing layers made by shifting Z).")]
@@ -100,9 +103,9 @@ SInterval = Annotated[float, typer.Option(
 Operations = Annotated[Optional[str], typer.Option(
     "--operations", help="Plan these operations (names as the program's comments give "
     "them, comma-separated), or all; default: the finishing operations ncopt recognises.")]
-Stock = Annotated[float, typer.Option(
-    "--stock", help="Stock the program leaves on the part (as in the CAM), mm: the mesh is "
-    "the finished part.")]
+Stock = Annotated[str, typer.Option(
+    "--stock", help="Stock the program leaves on the part (as in the CAM): mm, or with a "
+    "unit; the mesh is the finished part.")]
 Shape = Annotated[Optional[str], typer.Option(
     "--shape", help="ball or bull-nose: the cutter's shape, where the program's tool "
     "comment says otherwise (default: --diameter alone never overrides a flat end mill).")]
@@ -126,6 +129,20 @@ class _IoError(UsageError):
     """A file cannot be read or written."""
 
 
+_LENGTH = re.compile(r"^\s*([+-]?(?:\d+\.?\d*|\.\d+))\s*(mm|in|inch|inches|\")?\s*$", re.I)
+
+
+def length_mm(value, option: str) -> float | None:
+    """A length option in mm: a bare number is mm; ``0.25in``, ``6.35mm`` say their unit."""
+    if value is None or isinstance(value, (int, float)):
+        return value
+    m = _LENGTH.match(str(value))
+    if not m:
+        raise UsageError(f"{option} takes a length such as 6.35, 6.35mm or 0.25in, not {value!r}")
+    unit = (m.group(2) or "mm").lower()
+    return float(m.group(1)) * (1.0 if unit == "mm" else 25.4)
+
+
 def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel=None,
              max_rpm=None, min_rpm=None, max_feed=None, planner="lookahead",
              tool_point="tip", min_rpm_step=10.0, tool=None, rapid=None,
@@ -140,6 +157,11 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
     """
     from .profiles import load
 
+    bare = diameter is not None and not isinstance(diameter, (int, float)) and \
+        _LENGTH.match(str(diameter)) is not None and _LENGTH.match(str(diameter)).group(2) is None
+    diameter, corner_radius = length_mm(diameter, "--diameter"), length_mm(corner_radius,
+                                                                          "--corner-radius")
+    ap, stock = length_mm(ap, "--ap"), length_mm(stock, "--stock")
     profiles = load(tools_file=tools_file)
     name = machine or (profiles.default_machine[0] if profiles.default_machine else None)
     m = profiles.machine(name) if name else None
@@ -219,7 +241,7 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
                tool_library={k: c for k, (c, _) in profiles.tools.items() if isinstance(k, int)},
                operations=tuple(o.strip() for o in operations.split(",")) if operations else None,
                shape_named=shape is not None or corner_radius is not None or cutter is not None,
-               stock_mm=stock)
+               stock_mm=stock, diameter_bare=bare)
 
 
 def _job_options(values: dict) -> dict:
@@ -266,9 +288,9 @@ def rewrite(
     fz_band: FzBand = 2.0, control: Control = None, decimal_point: DecimalPoint = None,
     min_s_interval_ms: SInterval = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
-    material: Material = None, method: MethodName = "contact", ap: Ap = 0.2,
+    material: Material = None, method: MethodName = "contact", ap: Ap = "0.2",
     allowance_along: AllowanceAlong = "normal", operations: Operations = None,
-    shape: Shape = None, stock: Stock = 0.0,
+    shape: Shape = None, stock: Stock = "0",
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary on stderr.")] = False,
 ) -> None:
     """Rewrite a program's S and F words; every other byte stays as it is."""
@@ -360,9 +382,9 @@ def batch(
     fz_band: FzBand = 2.0, control: Control = None, decimal_point: DecimalPoint = None,
     min_s_interval_ms: SInterval = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
-    material: Material = None, method: MethodName = "contact", ap: Ap = 0.2,
+    material: Material = None, method: MethodName = "contact", ap: Ap = "0.2",
     allowance_along: AllowanceAlong = "normal", operations: Operations = None,
-    shape: Shape = None, stock: Stock = 0.0,
+    shape: Shape = None, stock: Stock = "0",
 ) -> None:
     """Rewrite every program of a folder in parallel; one bad file never stops the others."""
     from .batch import find_programs, run_batch, target_for

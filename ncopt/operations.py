@@ -54,6 +54,9 @@ MAX_SAMPLES = 60000
 OTHER_PASS_RATIO = 3.0  # path distance > ratio * straight distance: another pass
 VERTICAL = 0.98  # the nearest other pass this close to straight above: a retraced contour
 RETRACE_SHARE = 0.6
+# moves slower than this share of the operation's typical feed are entries (ramps,
+# plunges, lead-ins at a reduced feed), not its surface
+SLOW_FEED = 0.6
 
 # names that say what the geometry may not: roughing, holes, 2D, pencil/trace (a word
 # of the name, digits around it allowed: POCKET4, 2D CONTOUR1; not SURFACE for FACE)
@@ -410,8 +413,8 @@ def cutting_feed(tp: Toolpath, feed: np.ndarray) -> float:
 def _parts(tp: Toolpath, pts: np.ndarray, feed: np.ndarray, diameter_mm: float) -> list[_Part]:
     """Cut the operation's points at each rapid that follows a cut; classify each chunk
     with the whole operation as context; merge neighbours of the same kind.  Geometry
-    comes from the moves at the cutting feed (a helical ramp at a reduced feed is no
-    surface)."""
+    comes from the moves near the typical feed (a helical ramp at a reduced feed is no
+    surface; an ncopt output, whose F follows S, keeps most of its moves)."""
     is_feed = np.isin(pts, feed)
     cf = np.cumsum(is_feed)
     r = np.flatnonzero(tp.motion[pts] == Motion.RAPID)
@@ -419,7 +422,8 @@ def _parts(tp: Toolpath, pts: np.ndarray, feed: np.ndarray, diameter_mm: float) 
     starts = r[(cf[r] - prev) > 0] if r.size else r
     d = tp.xyz_mm[feed] - tp.xyz_mm[feed - 1]
     plunge = np.abs(d[:, 2]) > 0.9 * np.maximum(np.linalg.norm(d, axis=1), 1e-12)
-    at_feed = np.abs(tp.feed_mm_min[feed] - cutting_feed(tp, feed)) <= 1e-3
+    f = tp.feed_mm_min[feed]
+    at_feed = f >= SLOW_FEED * _weighted_median(f, tp.seg_len_mm[feed])
     geo = feed[~plunge & at_feed]
     if geo.size == 0:
         return [_Part(0, NO_CUT, np.nan, np.nan, "no cut at the cutting feed", 0.0)]

@@ -67,8 +67,7 @@ class Blocks:
             object.__setattr__(self, "spindle_start", np.zeros(n, dtype=bool))
         if self.running is None:
             object.__setattr__(self, "running", np.ones(n, dtype=bool))
-        if self.k_limited is None:
-            object.__setattr__(self, "k_limited", self.cutting)
+
 
 
 @dataclass(frozen=True)
@@ -127,8 +126,9 @@ def increments(blocks: Blocks, machine: Machine, k: float) -> tuple[np.ndarray, 
     inc_s : (nb,) RPM, other blocks: a*T over their whole duration T (inf for cutting)
     """
     ramp = machine.accel_rpm_s * blocks.time_s
-    inc_s2 = np.where(blocks.k_limited & ~blocks.spindle_start, k * blocks.length_mm, np.inf)
-    inc_s = np.where(blocks.k_limited | blocks.spindle_start, np.inf, ramp)
+    limited = blocks.cutting if blocks.k_limited is None else blocks.k_limited
+    inc_s2 = np.where(limited & ~blocks.spindle_start, k * blocks.length_mm, np.inf)
+    inc_s = np.where(limited | blocks.spindle_start, np.inf, ramp)
     return inc_s2, inc_s
 
 

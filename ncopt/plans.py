@@ -60,6 +60,8 @@ class OpPlan:
     over_target: tuple = (0, 0.0)
     s0_rpm: float = 0.0  # the operation's own S (the program's), for the stamp
     lines: tuple = (0, 0)  # its (first, last) lines, 1-based, numbered without stamp lines
+    coarse_lines: np.ndarray | None = None  # 0-based lines kept: F words too coarse for fz
+    s_low_rpm: np.ndarray | None = None  # lowest real spindle speed per block of the window
 
 
 @dataclass(frozen=True)
@@ -163,6 +165,9 @@ def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, sour
     planned = (mine & ~scope.demoted[win]) | free
     if lo < w0:
         planned[0] = False  # the block before: the speed the spindle comes from
+    coarse = _too_coarse(base.req_rpm[win] * cut.vc_m_min, base.cutting[win] & planned,
+                         machine, cut, view.cutter.teeth, opts)
+    planned &= ~coarse
     blocks = planner.Blocks(
         length_mm=base.length_mm[win], req_rpm=base.req_rpm[win] * cut.vc_m_min,
         cutting=base.cutting[win] & planned, planned=planned, time_s=base.time_s[win],
@@ -173,19 +178,90 @@ def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, sour
     plunge = -d[:, 2] > PLUNGE * np.maximum(np.linalg.norm(d, axis=1), 1e-12)
     s_ref, off_feed, f0, s0 = _feed_intent(blocks, feed, tp.spindle_rpm[fp], mine, machine,
                                            cut, view.cutter, opts, intent)
+    tail = _fixed_line_after(tp, idx, scope, last) if w1 == last + 1 else None
+    n = blocks.length_mm.shape[0]
     try:
-        emitted, f_mm, _ = planner.plan(blocks, machine, cut, view.cutter.teeth, opts)
+        emitted, f_mm, _ = planner.plan(_with_tail(blocks, tail), machine, cut,
+                                        view.cutter.teeth, opts)
     except PlanningError as exc:
         raise PlanningError(exc.message, exc.path or path, exc.line) from None
-    s_cmd = np.where(planned, emitted.s_cmd_rpm, cmd_rpm[win])
+    ext = lambda a, v: np.append(a, v) if tail is not None else a  # noqa: E731
+    s_cmd = _back_at_fixed(np.where(ext(planned, False), emitted.s_cmd_rpm,
+                                    ext(cmd_rpm[win], tail or 0.0)),
+                           ext(planned, False), ext(mine, False), ext(blocks.running, True))[:n]
+    emitted = planner.Emitted(emitted.s_cmd_rpm[:n], emitted.s_low_rpm[:n],
+                              emitted.s_high_rpm[:n], emitted.close_s_words)
+    f_mm = f_mm[:n]
     cmd_rpm[win] = s_cmd
-    reduced = mine & planned & (off_feed | plunge)
+    # off the cutting feed, plunging, or in the air: fz as the program has it
+    reduced = mine & planned & (off_feed | plunge | ~blocks.cutting)
     scaled = feed * emitted.s_low_rpm / np.where(s_ref > 0, s_ref, np.nan)
     f = np.where(reduced, np.minimum(scaled, machine.max_feed_mm_min), f_mm)
-    f = np.where(planned & (mine & ~reduced) & blocks.cutting | reduced, f, np.nan)
+    f = np.where(reduced | (mine & planned & blocks.cutting), f, np.nan)
     return OpPlan(k, op.tool, view.cutter, cut, source, (lo, w1), blocks, s_cmd, f, reduced,
                   f0, emitted.close_s_words,
-                  _over_target(blocks, emitted, machine, cut, view.cutter), s0)
+                  _over_target(blocks, emitted, machine, cut, view.cutter), s0,
+                  coarse_lines=idx.line[win][coarse], s_low_rpm=emitted.s_low_rpm)
+
+
+COARSE_MARGIN = 1.25
+
+
+def _fixed_line_after(tp: Toolpath, idx: planner.BlockIndex, scope: Scope, last: int):
+    """The program's S (RPM) at the first fixed line after block ``last`` that comes before
+    the next block (a subprogram call, a canned cycle): it must be in force there.  None
+    where the next block comes first, or the S there is not known."""
+    line = int(idx.line[last])
+    nxt = int(idx.line[last + 1]) if last + 1 < idx.line.shape[0] else scope.fixed.shape[0]
+    hits = np.flatnonzero(scope.fixed[line + 1:nxt])
+    if hits.size == 0:
+        return None
+    at = line + 1 + int(hits[0])
+    ls = tp.lines
+    known = ls.s_known[at - 1] if ls.call[at] else ls.s_known[at]
+    s = float(ls.s_rpm[at])
+    return s if known and s > 0 else None
+
+
+def _with_tail(blocks: planner.Blocks, tail_rpm: float | None) -> planner.Blocks:
+    """The blocks and, after them, an instant that keeps ``tail_rpm`` (a fixed line that
+    does not move: the spindle must be at the program's speed when it comes)."""
+    if tail_rpm is None:
+        return blocks
+    add = lambda a, v: np.append(a, v)  # noqa: E731
+    return planner.Blocks(
+        length_mm=add(blocks.length_mm, 0.0), req_rpm=add(blocks.req_rpm, np.inf),
+        cutting=add(blocks.cutting, False), planned=add(blocks.planned, False),
+        time_s=add(blocks.time_s, 0.0), fixed_rpm=add(blocks.fixed_rpm, tail_rpm),
+        spindle_start=add(blocks.spindle_start, False), running=add(blocks.running, True),
+        k_limited=add(blocks.k_limited, False))
+
+
+def _too_coarse(req_rpm, cutting, machine, cut, teeth, opts) -> np.ndarray:
+    """Cutting blocks whose feed is so low that the resolution of the program's F words
+    cannot hold fz within its band (F1. at a few mm/min): they keep the program's S and
+    F.  The band needs F above q / tol (``planner.max_speed_ratio``), with a margin."""
+    q = opts.f_quantum_mm_min
+    if not q > 0:
+        return np.zeros(cutting.shape, dtype=bool)
+    s_lo, s_hi = planner.speed_limits(machine, cut, teeth)
+    f_low = cut.fz_mm * teeth * np.clip(req_rpm, s_lo, s_hi)
+    return cutting & (f_low <= COARSE_MARGIN * q / opts.fz_tolerance)
+
+
+def _back_at_fixed(s_cmd: np.ndarray, planned: np.ndarray, mine: np.ndarray,
+                   running: np.ndarray) -> np.ndarray:
+    """The link moves just before a block that keeps the program's S command exactly that
+    S (the emission rounds to steps of --min-rpm-step; the program's own must be in force
+    when the block starts, written on those links)."""
+    out = s_cmd.copy()
+    link = planned & ~mine
+    for i in np.flatnonzero(~planned[1:] & running[1:] & planned[:-1]).tolist():
+        j = i  # block i + 1 keeps its S; walk back over the links before it
+        while j >= 0 and link[j]:
+            out[j] = s_cmd[i + 1]
+            j -= 1
+    return out
 
 
 def _feed_intent(blocks, feed, s_prog, mine, machine, cut, cutter, opts, intent):
@@ -362,7 +438,7 @@ def plan_program(prog: Program, tp: Toolpath, idx: planner.BlockIndex, job,
                 ops[k] = replace(op, planned=False, reason=odd)
     point_op = _point_ops(tp, ops, plannable)
     op_tool = np.array([o.tool for o in ops] or [-1], dtype=np.int64)
-    scope = regions.scope(prog, tp, idx, point_op, op_tool)
+    scope = regions.scope(prog, tp, idx, point_op, ops)
     views, plans, fits = {}, [], {}
     cmd = tp.spindle_rpm[idx.first_point].astype(np.float64)
     for k, op in enumerate(ops):
@@ -413,7 +489,7 @@ def decide(ops: list, choices: dict, job, tp: Toolpath, plannable: np.ndarray) -
         planned, why = op.planned, op.reason
         choice = choices.get(op.tool)
         base_name = op.name.split(" (part ")[0]
-        if wanted is not None and op.kind not in (NO_CUT, CANNED):
+        if wanted is not None and op.kind != CANNED and _points(tp, op, plannable).size:
             forced = wanted == "all" or base_name.lower() in wanted or op.name.lower() in wanted
             if forced and not planned:
                 planned, why = True, f"{why}; planned because --operations names it"
@@ -427,7 +503,7 @@ def decide(ops: list, choices: dict, job, tp: Toolpath, plannable: np.ndarray) -
             planned, why = False, f"another tool than T{job.tool} (--tool)"
         span = slice(op.first_line, op.last_line + 1)
         deleted = np.flatnonzero(ls.block_delete[span] & ls.executed[span])
-        if planned and deleted.size:
+        if deleted.size and op.kind not in (NO_CUT, CANNED):
             planned = False
             why = (f"block-delete line {op.first_line + int(deleted[0]) + 1} (/): whether it "
                    "runs is the operator's choice, so the S and F in force are not known")

@@ -47,20 +47,19 @@ class Scope:
 
 
 def scope(prog: Program, tp: Toolpath, idx: BlockIndex, point_op: np.ndarray,
-          op_tool: np.ndarray) -> Scope:
+          ops: list) -> Scope:
     """``point_op``: (n,) the planned operation each toolpath point is planned by (-1:
-    not planned); ``op_tool``: the T number of each operation.
+    not planned); ``ops``: the operations (their spans and tools).
 
-    A run goes on across a tool change: where the next tool has no S word of its own,
-    the program's S must be back in force before its first cut.  Blocks of another tool
-    in a run keep the program's S and F (their lines may only carry a word back)."""
+    Only lines inside a planned operation's own span are ever edited: its approach and
+    retract (the link moves that carry the spindle into it and back to the program's
+    speed) are part of it; the next operation's lines are not.  Its blocks of another
+    tool (before its tool change) keep the program's S and F."""
     ls = tp.lines
     n = prog.n_lines
     planned_line = np.zeros(n, dtype=bool)
-    line_op = np.full(n, -1, dtype=np.int64)
     sel = point_op >= 0
     planned_line[tp.line[sel]] = True
-    line_op[tp.line[sel]] = point_op[sel]
     feed_line = np.zeros(n, dtype=bool)
     feed_line[tp.line[1:][tp.motion[1:] >= Motion.LINEAR]] = True
     never = never_edited(prog, tp)
@@ -69,10 +68,16 @@ def scope(prog: Program, tp: Toolpath, idx: BlockIndex, point_op: np.ndarray,
     run = np.cumsum(fixed)
     active = np.zeros(int(run[-1]) + 1 if n else 1, dtype=bool)
     active[run[planned_line]] = True
-    editable = active[run] & ~fixed & ~never & ls.executed & ~planned_line
-    editable |= planned_line
-    owner = _owners(idx, run, line_op, active)
-    other_tool = (owner >= 0) & (op_tool[np.maximum(owner, 0)] != ls.tool[idx.line])
+    span_op = np.full(n, -1, dtype=np.int64)
+    for k, op in enumerate(ops):
+        if op.planned:
+            span_op[op.first_line:op.last_line + 1] = k
+    inside = active[run] & (span_op >= 0)
+    editable = (inside & ~fixed & ~never & ls.executed) | planned_line
+    b_line = idx.line
+    owner = np.where(inside[b_line], span_op[b_line], -1).astype(np.int32)
+    op_tool = np.array([o.tool for o in ops] or [-1], dtype=np.int64)
+    other_tool = (owner >= 0) & (op_tool[np.maximum(owner, 0)] != ls.tool[b_line])
     owner[other_tool] = -1
     demoted = _demoted(prog, idx, run, planned_line, editable, fixed, owner)
     return Scope(editable, fixed, owner, demoted)
@@ -89,41 +94,10 @@ def never_edited(prog: Program, tp: Toolpath) -> np.ndarray:
     return out
 
 
-def _owners(idx: BlockIndex, run: np.ndarray, line_op: np.ndarray, active: np.ndarray) -> np.ndarray:
-    """Per block: the operation of the next planned block in its run (the approach), else
-    of the previous one (the retract); -1 outside active runs."""
-    b_run = run[idx.line]
-    b_op = line_op[idx.line].astype(np.float64)
-    b_op[b_op < 0] = np.nan
-    nb = b_op.shape[0]
-    out = np.full(nb, -1, dtype=np.int32)
-    if nb == 0:
-        return out
-    nxt = _fill_within(b_op[::-1], b_run[::-1])[::-1]
-    prv = _fill_within(b_op, b_run)
-    pick = np.where(np.isnan(nxt), prv, nxt)
-    ok = active[b_run] & ~np.isnan(pick)
-    out[ok] = pick[ok].astype(np.int32)
-    return out
-
-
-def _fill_within(values: np.ndarray, group: np.ndarray) -> np.ndarray:
-    """Forward fill of NaNs that never crosses into another group (groups contiguous)."""
-    n = values.shape[0]
-    i = np.arange(n)
-    i[np.isnan(values)] = -1
-    np.maximum.accumulate(i, out=i)
-    start = np.flatnonzero(np.concatenate(([True], group[1:] != group[:-1])))
-    first = start[np.searchsorted(start, np.arange(n), side="right") - 1]
-    ok = i >= first
-    out = np.full(n, np.nan)
-    out[ok] = values[i[ok]]
-    return out
-
-
 def _demoted(prog, idx, run, planned_line, editable, fixed, owner) -> np.ndarray:
-    """The last planned block of a run that a fixed line follows with no line between
-    where a word could bring the spindle back: it keeps the program's S and F."""
+    """The last planned block of a run that a block or line of someone else (a fixed
+    line, a block of no planned operation) follows with no line between where a word
+    could bring the spindle back: it keeps the program's S and F."""
     nb = idx.line.shape[0]
     demoted = np.zeros(nb, dtype=bool)
     b_planned = planned_line[idx.line]
@@ -140,9 +114,10 @@ def _demoted(prog, idx, run, planned_line, editable, fixed, owner) -> np.ndarray
     for b in last.tolist():
         line = int(idx.line[b])
         k = np.searchsorted(fixed_lines, line, side="right")
-        if k == fixed_lines.size:
-            continue  # nothing fixed follows
-        nxt = int(fixed_lines[k])
-        if carriers[nxt - 1] - carriers[line] == 0:  # no line between to carry a word
-            demoted[b] = True
+        nxt = int(fixed_lines[k]) if k < fixed_lines.size else prog.n_lines
+        other = np.flatnonzero(owner[b + 1:] != owner[b])
+        if other.size:
+            nxt = min(nxt, int(idx.line[b + 1 + other[0]]))
+        if nxt < prog.n_lines and carriers[nxt - 1] - carriers[line] == 0:
+            demoted[b] = True  # no line between to carry a word
     return demoted
