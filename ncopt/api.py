@@ -268,7 +268,7 @@ def _cutter(job, table, tool, n_tools, line_inch):
         return None, "", "no diameter known from the program's comments: give --diameter " \
             "(and --corner-radius for a bull-nose)"
     if info.kind not in (BALL, BULL):
-        kind = "a flat end mill" if info.kind == "flat" else "not a ball or bull-nose"
+        kind = info.refusal()
         return None, "", f"{kind} ({info.text.strip()}); ncopt plans ball and bull-nose " \
             "cutters only"
     inch = line_inch is not None and bool(np.any(line_inch))
