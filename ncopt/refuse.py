@@ -23,7 +23,9 @@ Two kinds of checks, both raising :class:`~ncopt.errors.NcParseError`
 (checked with rs274, messages quoted below):
 
 * The same letter twice in a block (``G1 X1 X2``: "Multiple x words on one
-  line"): which value a control would take is not something ncopt can know.
+  line"; grbl too: error 25, "Repeated g-code word found in block").  No Fanuc
+  or Sinumerik manual at hand says which of the two values they would take,
+  and ncopt cannot know it either.
   Several G and M words are normal (different modal groups; the interpreter
   checks the groups), and so are several H words on Sinumerik (its auxiliary
   functions; ncopt reads no H word).  A Fanuc macro call (G65, G66) may repeat
