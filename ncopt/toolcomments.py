@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, fields
+from functools import lru_cache
 
 NUM = r"[+-]?(?:\d+\.?\d*|\.\d+)"
 _UNIT = r"\s*(mm\b|\"|''|in(?:ch(?:es)?)?\b)?"
@@ -85,14 +86,28 @@ class Fact:
         return Fact(**values)
 
 
+@lru_cache(maxsize=4096)  # programs repeat their comments ("(Begin step 0.)")
 def read_comment(text: str) -> Fact | None:
     """A Fact from one comment's text (without its parentheses), or None."""
+    if not may_describe_a_tool(text):
+        return None
     for reader in (_fusion, _openbuilds, _blendercam, _carbide, _mastercam, _hypermill,
                    _freecad):
         fact = reader(text)
         if fact is not None:
             return fact
     return _free_text(text)
+
+
+_SIZE_HINTS = ("d", "mm", '"', "''", "/", "in", "\xd8", "tool type")
+
+
+def may_describe_a_tool(text: str) -> bool:
+    """A quick test every description passes (it names a size, or FreeCAD's tool type):
+    most comments of a long program ("(pass 12)") go no further."""
+    low = text.lower()
+    return any(hint in low for hint in _SIZE_HINTS) and (any(c.isdigit() for c in low)
+                                                         or "tool type" in low)
 
 
 def _num(text: str | None) -> float | None:

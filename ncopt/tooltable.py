@@ -33,8 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .model import Cutter, LineKind, Program
-from .toolcomments import (BALL, BULL, BULL_NO_RADIUS, FLAT, OTHER, UNKNOWN, Fact, read_comment,
-                           shape)
+from .toolcomments import (BALL, BULL, BULL_NO_RADIUS, FLAT, OTHER, UNKNOWN, Fact,
+                           may_describe_a_tool, read_comment, shape)
 
 __all__ = ["BALL", "BULL", "BULL_NO_RADIUS", "FLAT", "OTHER", "UNKNOWN", "UNNUMBERED",
            "ToolInfo", "parse_tool_comment", "tool_comments", "tool_table", "cutter_for"]
@@ -135,7 +135,7 @@ def _info(desc: _Described, number: int | None) -> ToolInfo | None:
                     fact.teeth, teeth_line, fact.unit, fact.source)
 
 
-_COMMENT = re.compile(r"\(([^()]*)\)|;(.*)$")
+_COMMENT_IN_TEXT = re.compile(r"\(([^()\r\n]*)\)|;([^\r\n]*)")
 # ncopt's own stamp (ncopt.stamp) names the cutter in mm whatever the program's units;
 # the planner reads it there, never as a tool comment
 _NCOPT_STAMP = re.compile(r"\s*ncopt \S+ T-?\d+ vc=")
@@ -197,21 +197,28 @@ def cutter_for(table: dict[int, ToolInfo], tool: int, n_tools: int) -> ToolInfo 
 
 # ----------------------------------------------------------------- helpers ----
 def _comment_lines(prog: Program) -> list[tuple[int, list[str]]]:
-    """(0-based line, comment texts) of every line holding a comment."""
-    raw = np.frombuffer(prog.text.encode("latin-1"), dtype=np.uint8)
-    marks = np.flatnonzero((raw == ord("(")) | (raw == ord(";")))
-    if marks.size == 0:
+    """(0-based line, comment texts) of every line holding a comment that may describe a
+    tool (one pass of a regular expression over the text, then a quick test per comment)."""
+    text = prog.text
+    if "(" not in text and ";" not in text:
         return []
-    found = np.unique(np.searchsorted(prog.line_start, marks, side="right") - 1)
-    found = found[(found >= 0) & (found < prog.n_lines)]
-    found = found[prog.line_kind[found] != LineKind.TRAILER]
-    out = []
-    for line in found.tolist():
-        texts = [c.group(1) if c.group(1) is not None else c.group(2)
-                 for c in _COMMENT.finditer(prog.line_text(line))]
-        texts = [t for t in texts if t and t.strip() and not _NCOPT_STAMP.match(t)]
-        if texts:
-            out.append((line, texts))
+    found: list[tuple[int, str]] = []
+    for m in _COMMENT_IN_TEXT.finditer(text):
+        body = m.group(1) if m.group(1) is not None else m.group(2)
+        if body and may_describe_a_tool(body) and not _NCOPT_STAMP.match(body):
+            found.append((m.start(), body))
+    if not found:
+        return []
+    lines = np.searchsorted(prog.line_start, [pos for pos, _ in found], side="right") - 1
+    trailer = (prog.line_kind[np.minimum(lines, prog.n_lines - 1)] == LineKind.TRAILER).tolist()
+    out: list[tuple[int, list[str]]] = []
+    for line, (_, body), after_end in zip(lines.tolist(), found, trailer):
+        if line >= prog.n_lines or after_end:
+            continue
+        if out and out[-1][0] == line:
+            out[-1][1].append(body)
+        else:
+            out.append((line, [body]))
     return out
 
 
