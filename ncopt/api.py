@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import planner
+from . import passes, planner
 from .contacts import Method, Sampled, contacts_for
-from .controls import control_note
+from .controls import ANYWHERE, BETWEEN_PASSES, control_note, default_s_changes
 from .dialect import detect, resolve_decimal_point
 from .errors import NothingToPlan, PlanningError, UsageError, VerificationError
 from .geometry import MeshIndex, load_stl
@@ -74,6 +74,8 @@ class ToolPlan:
     sampled: Sampled
     close_s_words: int = 0
     over_target: tuple = (0, 0.0)  # (blocks, worst vc excess %) forced by the program's own S
+    passes: int = 0  # runs of cutting blocks (ncopt.passes.pass_ids)
+    other_time_min: float = float("nan")  # cutting time with the other --s-changes mode
 
 
 @dataclass(frozen=True)
@@ -104,6 +106,10 @@ class Summary:
     control: str = ""
     control_source: str = ""
     control_notes: tuple = ()
+    s_changes: str = ANYWHERE  # where S may change: anywhere, or between passes only
+    s_changes_source: str = ""  # "given", or the control whose default it is
+    passes: int = 0
+    cut_time_other_min: float = float("nan")  # the same program with the other s_changes
 
     @property
     def time_change_pct(self) -> float:
@@ -183,6 +189,7 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     ``mesh_index``: the part's mesh, or a ``concurrent.futures.Future`` of it
     (loading while the program is read); None: normals from the toolpath.
     """
+    job_mode_given = job.options.s_changes is not None
     found = detect(text)
     prog = read_text(text, path, job, found.name)
     tp = interpret(prog)
@@ -194,7 +201,9 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     if inch and f_style.decimals < 2:
         f_style = replace(f_style, decimals=2, trailing_point=False)  # inch/min needs them
     quantum = 10.0 ** -f_style.decimals * (MM_PER_INCH if inch else 1.0)
-    job = replace(job, options=replace(job.options, f_quantum_mm_min=quantum))
+    control = job.control or found.name
+    mode = job.options.s_changes or default_s_changes(control)
+    job = replace(job, options=replace(job.options, f_quantum_mm_min=quantum, s_changes=mode))
     stamps = read_stamps(prog)
     plans, skipped = _plan_tools(prog, tp, idx, job, mesh_index, stamps)
     mesh_edge = float(mesh_index.edge_lengths.median_mm) if mesh_index else None
@@ -208,12 +217,13 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     if job.verify:
         verify(prog, tp, out, targets, s_style, f_style, job, found.name)
     summary = _summary(prog, tp, idx, plans, skipped, counts, mesh_edge)
-    control = job.control or found.name
     source = job.control_from if job.control else (
         f"detected from {len(found.marks)} mark{'s' if len(found.marks) > 1 else ''}"
         if found.marks else "no marks: generic")
     summary = replace(summary, control=control, control_source=source,
-                      control_notes=(control_note(control, summary.s_words),))
+                      control_notes=(control_note(control, summary.s_words, mode),),
+                      s_changes=mode, s_changes_source="given" if job_mode_given else
+                      f"the default for {control}")
     return Result(out, summary, prog, tp, idx, tuple(plans), targets)
 
 
@@ -294,7 +304,26 @@ def _plan_tool(tp, idx, job, mesh_index, tool, cutter, source, selected, path) -
             raise PlanningError(exc.message, path) from None
         raise
     return ToolPlan(tool, cutter, cut, source, blocks, emitted.s_cmd_rpm, f_mm, sampled,
-                    emitted.close_s_words, _over_target(blocks, emitted, job, cut, cutter))
+                    emitted.close_s_words, _over_target(blocks, emitted, job, cut, cutter),
+                    int(passes.pass_ids(blocks).max(initial=-1)) + 1,
+                    _other_mode_time(blocks, job, cut, cutter))
+
+
+def _other_mode_time(blocks, job, cut, cutter) -> float:
+    """Cutting time (min) the other --s-changes mode would give: what the choice costs."""
+    other = BETWEEN_PASSES if job.options.s_changes == ANYWHERE else ANYWHERE
+    try:
+        _, f_mm, _ = planner.plan(blocks, job.machine, cut, cutter.teeth,
+                                  replace(job.options, s_changes=other))
+    except PlanningError:  # that mode cannot hold the cutting data here: no figure
+        return float("nan")
+    return cut_time_min(blocks, f_mm)
+
+
+def cut_time_min(blocks: planner.Blocks, f_mm_min: np.ndarray) -> float:
+    """Time of the cutting blocks at the given feeds, min."""
+    c = blocks.cutting
+    return float(np.sum(blocks.length_mm[c] / np.maximum(f_mm_min[c], 1e-9)))
 
 
 def _over_target(blocks, emitted, job, cut, cutter) -> tuple:
@@ -400,7 +429,7 @@ def _summary(prog, tp, idx, plans, skipped, counts, mesh_edge) -> Summary:
     for p in plans:
         c = p.blocks.cutting
         before += float(np.sum(p.blocks.length_mm[c] / f_orig[c]))
-        after += float(np.sum(p.blocks.length_mm[c] / np.maximum(p.f_mm_min[c], 1e-9)))
+        after += cut_time_min(p.blocks, p.f_mm_min)
         cutting_blocks += int(c.sum())
         planned_blocks += int(p.blocks.planned.sum())
     n_edits, s_words, f_words = counts
@@ -418,7 +447,9 @@ def _summary(prog, tp, idx, plans, skipped, counts, mesh_edge) -> Summary:
             f"{p.over_target[0]} cutting blocks, where the spindle is still falling from an S "
             "that ncopt could not plan (a block it left as programmed)"
             for p in plans if p.over_target[0]),
-        close_s_words=sum(p.close_s_words for p in plans))
+        close_s_words=sum(p.close_s_words for p in plans),
+        passes=sum(p.passes for p in plans),
+        cut_time_other_min=sum(p.other_time_min for p in plans))
     est = first.sampled.estimate
     if est is not None:
         summary = replace(summary, normals_from="toolpath", stepover_mm=est.stepover_mm,

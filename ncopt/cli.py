@@ -18,7 +18,7 @@ from .api import Job, Summary, rewrite_file
 from .errors import (MeshError, NcoptError, NcParseError, PlanningError, UsageError,
                      VerificationError)
 from .contacts import Method
-from .controls import CONTROLS
+from .controls import CONTROLS, S_CHANGES
 from .dialect import DECIMAL_POINT_CONVENTIONS
 from .model import Cutter, CuttingData, Machine, PlanOptions
 
@@ -97,6 +97,10 @@ AllowanceAlong = Annotated[str, typer.Option(
     "along the surface normal or the tool axis (finishing layers made by shifting Z).")]
 SInterval = Annotated[float, typer.Option(
     "--min-s-interval-ms", help="Least time between S words, ms (Sinumerik PLC).")]
+SChanges = Annotated[Optional[str], typer.Option(
+    "--s-changes", help="anywhere: S follows the cut block by block; between-passes: one S "
+    "per pass, changed only on the moves between passes (for controls that stop at every S "
+    "word). Default: between-passes for grbl, else anywhere.")]
 
 
 def _exit_code(exc: NcoptError) -> Exit:
@@ -122,7 +126,8 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
              tool_point="tip", min_rpm_step=10.0, tool=None, rapid=None,
              fz_policy="centred", fz_band=2.0, control=None, min_s_interval_ms=None,
              machine=None, tools_file=None, cutter=None, material=None,
-             method="contact", ap=0.2, allowance_along="normal", decimal_point=None) -> Job:
+             method="contact", ap=0.2, allowance_along="normal", decimal_point=None,
+             s_changes=None) -> Job:
     """A Job from command-line values and the profiles, checked; raises UsageError.
 
     Command-line values win; then the machine profile (--machine, else the
@@ -141,6 +146,7 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
     rapid, control = pick(rapid, "rapid_mm_min", 10000.0), pick(control, "control", None)
     min_s_interval_ms = pick(min_s_interval_ms, "min_s_interval_ms", 0.0)
     decimal_point = pick(decimal_point, "decimal_point", None)
+    s_changes = pick(s_changes, "s_changes", None)
     if cutter is not None:
         if diameter is not None:
             raise UsageError("give --cutter or --diameter, not both")
@@ -180,6 +186,8 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
     if decimal_point is not None and decimal_point not in DECIMAL_POINT_CONVENTIONS:
         raise UsageError(f"--decimal-point must be one of {', '.join(DECIMAL_POINT_CONVENTIONS)}, "
                          f"not {decimal_point!r}")
+    if s_changes is not None and s_changes not in S_CHANGES:
+        raise UsageError(f"--s-changes must be anywhere or between-passes, not {s_changes!r}")
     if min_s_interval_ms < 0:
         raise UsageError("--min-s-interval-ms cannot be negative")
     if method not in ("contact", "material"):
@@ -193,7 +201,7 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
                cutting=CuttingData(vc, fz) if vc is not None else None,
                options=PlanOptions(planner=planner, min_rpm_step=min_rpm_step,
                                    fz_tolerance=fz_band / 100.0, fz_policy=fz_policy,
-                                   min_s_interval_ms=min_s_interval_ms),
+                                   min_s_interval_ms=min_s_interval_ms, s_changes=s_changes),
                tool=tool, teeth=teeth, control=control, control_from=control_from,
                method=Method(method, ap, allowance_along), decimal_point=decimal_point,
                tool_library={k: c for k, (c, _) in profiles.tools.items() if isinstance(k, int)})
@@ -241,7 +249,7 @@ def rewrite(
     planner: Planner = "lookahead", tool_point: ToolPoint = "tip", min_rpm_step: MinStep = 10.0,
     tool: Tool = None, rapid: Rapid = None, fz_policy: FzPolicy = "centred",
     fz_band: FzBand = 2.0, control: Control = None, decimal_point: DecimalPoint = None,
-    min_s_interval_ms: SInterval = None,
+    min_s_interval_ms: SInterval = None, s_changes: SChanges = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, method: MethodName = "contact", ap: Ap = 0.2,
     allowance_along: AllowanceAlong = "normal",
@@ -259,6 +267,19 @@ def rewrite(
         print_summary(result.summary, err)
 
 
+def s_changes_line(s: Summary) -> str:
+    """Where S changes, why, and what the other choice would cut in."""
+    why = s.s_changes_source
+    other = (f"{s.cut_time_other_min:.1f} min" if s.cut_time_other_min == s.cut_time_other_min
+             else "not possible with these cutting data")
+    n = f"{s.passes} pass" + ("" if s.passes == 1 else "es")
+    if s.s_changes == "between-passes":
+        return (f"S changes between passes only ({why}): one S for each of {n}; with S "
+                f"changing anywhere along the cut: {other}")
+    return (f"S changes anywhere along the cut ({why}); between passes only (one S for each "
+            f"of {n}): {other}")
+
+
 def print_summary(s: Summary, console: Console) -> None:
     """The few lines a machinist reads after a rewrite."""
     say = lambda text: console.print(text, markup=False)  # noqa: E731
@@ -272,6 +293,7 @@ def print_summary(s: Summary, console: Console) -> None:
     say(f"ncopt: vc {s.vc_m_min:.1f} m/min, fz {s.fz_mm:.4f} mm, highest S {s.max_s_rpm:.0f} RPM")
     say(f"ncopt: estimated cutting time {s.cut_time_before_min:.1f} -> "
         f"{s.cut_time_after_min:.1f} min ({s.time_change_pct:+.1f} %)")
+    say(f"ncopt: {s_changes_line(s)}")
     if s.mesh_edge_mm is not None:
         say(f"ncopt: mesh median edge {s.mesh_edge_mm:.2f} mm")
     if s.normals_from == "toolpath":
@@ -307,7 +329,7 @@ def batch(
     planner: Planner = "lookahead", tool_point: ToolPoint = "tip", min_rpm_step: MinStep = 10.0,
     tool: Tool = None, rapid: Rapid = None, fz_policy: FzPolicy = "centred",
     fz_band: FzBand = 2.0, control: Control = None, decimal_point: DecimalPoint = None,
-    min_s_interval_ms: SInterval = None,
+    min_s_interval_ms: SInterval = None, s_changes: SChanges = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, method: MethodName = "contact", ap: Ap = 0.2,
     allowance_along: AllowanceAlong = "normal",

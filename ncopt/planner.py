@@ -529,6 +529,11 @@ def plan(blocks: Blocks, machine: Machine, cut: CuttingData, teeth: int,
     """Profile -> integer S commands (RPM) -> F (mm/min) per block."""
     if opts.planner not in ("lookahead", "forward"):
         raise PlanningError(f"unknown planner {opts.planner!r}")
+    if opts.s_changes == "between-passes":
+        from .passes import plan as between_passes
+        return between_passes(blocks, machine, cut, teeth, opts)
+    if opts.s_changes not in (None, "anywhere"):
+        raise PlanningError(f"unknown S change mode {opts.s_changes!r}")
     planner_fn = lookahead if opts.planner == "lookahead" else forward
     profile = planner_fn(blocks, machine, cut, teeth, opts)
     incs = increments(blocks, machine, profile.k_rpm2_per_mm)
