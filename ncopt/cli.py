@@ -97,6 +97,9 @@ AllowanceAlong = Annotated[str, typer.Option(
     "along the surface normal or the tool axis (finishing layers made by shifting Z).")]
 SInterval = Annotated[float, typer.Option(
     "--min-s-interval-ms", help="Least time between S words, ms (Sinumerik PLC).")]
+ReportFile = Annotated[Optional[Path], typer.Option(
+    "--report", help="Also write an HTML report: times, S/F/fz/D_eff curves, a 3D toolpath "
+    "and the changed blocks, in one file that opens offline.")]
 SChanges = Annotated[Optional[str], typer.Option(
     "--s-changes", help="anywhere: S follows the cut block by block; between-passes: one S "
     "per pass, changed only on the moves between passes (for controls that stop at every S "
@@ -252,19 +255,49 @@ def rewrite(
     min_s_interval_ms: SInterval = None, s_changes: SChanges = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, method: MethodName = "contact", ap: Ap = 0.2,
-    allowance_along: AllowanceAlong = "normal",
+    allowance_along: AllowanceAlong = "normal", report: ReportFile = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary on stderr.")] = False,
 ) -> None:
     """Rewrite a program's S and F words; every other byte stays as it is."""
     try:
         job = make_job(**_job_options(locals()))
+        _check_report(report)
         data = sys.stdin.buffer.read() if input == "-" else _read(input)
         result = rewrite_file(input, job, mesh_path=mesh, data=data)
         _write(output, result.text.encode("latin-1"), input)
+        if report is not None:
+            from .report import from_rewrite
+            _write_report(report, lambda index: from_rewrite(
+                result, data.decode("latin-1"), input, output or "-", job, index), mesh, quiet)
     except NcoptError as exc:
         _fail(exc)
     if not quiet:
         print_summary(result.summary, err)
+
+
+def _check_report(report: Optional[Path], json_ok: bool = False) -> None:
+    """Refuse a report that cannot be written before the (long) work, not after it."""
+    if report is None:
+        return
+    if not (json_ok and report.suffix.lower() == ".json"):
+        from .report import require_libraries
+        require_libraries()
+    if not report.resolve().parent.is_dir():
+        raise _IoError("the folder to write into does not exist; create it first", str(report))
+
+
+def _write_report(path: Path, gather, mesh: Optional[Path], quiet: bool = False) -> None:
+    """Simulate what the report shows (with the mesh, if any) and write the page."""
+    from .geometry import MeshIndex, load_stl
+    from .report import render, write
+
+    page = render(gather(MeshIndex(load_stl(mesh)) if mesh else None))
+    try:
+        write(path, page)
+    except OSError as exc:
+        raise _IoError(f"cannot write the report: {exc.strerror or exc}", str(path)) from None
+    if not quiet:
+        err.print(f"ncopt: report written to {path}", markup=False)
 
 
 def s_changes_line(s: Summary) -> str:
@@ -322,7 +355,8 @@ def batch(
     jobs: Annotated[int, typer.Option("--jobs", "-j", help="Parallel processes.")] = 0,
     in_place: Annotated[bool, typer.Option("--in-place", help="Replace the originals "
                                            "(a backup NAME.bak is kept).")] = False,
-    report: Annotated[Optional[Path], typer.Option("--report", help="Write a JSON report.")] = None,
+    report: Annotated[Optional[Path], typer.Option("--report", help="Write a report: JSON "
+                      "(.json), or an HTML index (.html) with one page per file beside it.")] = None,
     mesh: Mesh = None, diameter: Diameter = None, corner_radius: CornerRadius = None,
     teeth: Teeth = 2, vc: Vc = None, fz: Fz = None, accel: Accel = None,
     max_rpm: MaxRpm = None, min_rpm: MinRpm = None, max_feed: MaxFeed = None,
@@ -337,14 +371,18 @@ def batch(
     """Rewrite every program of a folder in parallel; one bad file never stops the others."""
     from .batch import find_programs, run_batch, target_for
     from .batchview import BatchView
+    from .report import page_path
 
     try:
         job = make_job(**_job_options(locals()))
+        _check_report(report, json_ok=True)
         base, files = find_programs(inputs)
         if in_place and output is not None:
             raise UsageError("give either -o OUTDIR or --in-place, not both")
+        html = report is not None and report.suffix.lower() != ".json"
         tasks = [(str(f), str(target_for(f, base, output, in_place)), job, mesh,
-                  ".bak" if in_place else None) for f in files]
+                  ".bak" if in_place else None, html and page_path(report, base, f) or None)
+                 for f in files]
     except NcoptError as exc:
         _fail(exc)
     if not tasks:
@@ -358,11 +396,44 @@ def batch(
         err.print("ncopt: interrupted; finished files are complete, no partial file was left")
         raise typer.Exit(int(Exit.INTERRUPTED))
     view.table(reports, base)
-    if report is not None:
+    if report is not None and report.suffix.lower() == ".json":
         report.write_text(json.dumps([r.to_dict() for r in reports], indent=2))
+    elif report is not None:
+        from .report import render_index, write
+        write(report, render_index(reports, base, report))
+        err.print(f"ncopt: report written to {report}", markup=False)
     failed = sum(r.status == "failed" for r in reports)
     raise typer.Exit(int(Exit.OK if failed == 0 else
                          Exit.NOTHING_DONE if failed == len(reports) else Exit.SOME_FAILED))
+
+
+@app.command()
+def report(
+    program: Annotated[str, typer.Argument(help="NC program to report on (any program, by "
+                                           "ncopt or not), or - for stdin.")],
+    output: Annotated[Path, typer.Option("-o", "--output", help="The HTML file to write.")],
+    against: Annotated[Optional[str], typer.Option(
+        "--against", help="The original program, to compare with.")] = None,
+    sample: Annotated[float, typer.Option("--sample", help="Sample spacing along the path, mm.")] = 0.1,
+    mesh: Mesh = None, diameter: Diameter = None, corner_radius: CornerRadius = None,
+    teeth: Teeth = 2, vc: Vc = None, fz: Fz = None, accel: Accel = None,
+    max_rpm: MaxRpm = None, min_rpm: MinRpm = None, max_feed: MaxFeed = None,
+    tool_point: ToolPoint = "tip", tool: Tool = None, rapid: Rapid = None,
+    machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
+    material: Material = None, control: Control = None, decimal_point: DecimalPoint = None,
+) -> None:
+    """Write one HTML page about a program (and its original): times, curves, 3D toolpath."""
+    from .report import from_programs
+
+    try:
+        job = make_job(**_job_options(locals()))
+        _check_report(output)
+        text = (sys.stdin.buffer.read() if program == "-" else _read(program)).decode("latin-1")
+        original = _read(against).decode("latin-1") if against else None
+        _write_report(output, lambda index: from_programs(text, program, original, against, job,
+                                                          index, sample), mesh)
+    except NcoptError as exc:
+        _fail(exc)
 
 
 @app.command()

@@ -122,14 +122,15 @@ def plot_along_path(runs: list[tuple[str, SimSeries, SimReport]], path: str | Pa
     return _save(along_path_figure(runs, title), path)
 
 
-def toolpath_figure(series: SimSeries, color_by: str = "s_rpm", title: str = ""):
-    """The figure of :func:`plot_toolpath`."""
+def toolpath_figure(series: SimSeries, color_by: str = "s_rpm", title: str = "",
+                    max_points: int = MAX_SCATTER):
+    """The figure of :func:`plot_toolpath`, with at most ``max_points`` samples drawn."""
     plt = _pyplot()
     from matplotlib.ticker import MaxNLocator
 
     cut = series.cutting
     xyz, value = series.xyz_mm[cut], getattr(series, color_by)[cut]
-    step = max(1, -(-xyz.shape[0] // MAX_SCATTER))
+    step = max(1, -(-xyz.shape[0] // max_points))
     xyz, value = xyz[::step], value[::step]
     fig = plt.figure(figsize=(13, 6))
     grid = fig.add_gridspec(1, 2, width_ratios=(1.0, 1.4))
