@@ -297,24 +297,44 @@ def _plan_tool(tp, idx, job, mesh_index, tool, cutter, source, selected, path) -
         idx, tp.seg_len_mm, tp.motion, tp.feed_mm_min, tp.known,
         tp.spindle_on & in_section, tp.spindle_rpm, req, c.cutting, sampled.point, selected,
         job.machine.rapid_mm_min)
+    sep = _separating(tp, idx, blocks, sampled)
     try:
-        emitted, f_mm, _ = planner.plan(blocks, job.machine, cut, cutter.teeth, job.options)
+        emitted, f_mm, _ = _plan_blocks(blocks, job, job.options, cut, cutter, sep)
     except PlanningError as exc:
         if exc.path is None:
             raise PlanningError(exc.message, path) from None
         raise
     return ToolPlan(tool, cutter, cut, source, blocks, emitted.s_cmd_rpm, f_mm, sampled,
                     emitted.close_s_words, _over_target(blocks, emitted, job, cut, cutter),
-                    int(passes.pass_ids(blocks).max(initial=-1)) + 1,
-                    _other_mode_time(blocks, job, cut, cutter))
+                    int(passes.pass_ids(blocks, sep).max(initial=-1)) + 1,
+                    _other_mode_time(blocks, job, cut, cutter, sep))
 
 
-def _other_mode_time(blocks, job, cut, cutter) -> float:
+def _plan_blocks(blocks, job, opts, cut, cutter, sep):
+    if opts.s_changes == BETWEEN_PASSES:
+        return passes.plan(blocks, job.machine, cut, cutter.teeth, opts, sep)
+    return planner.plan(blocks, job.machine, cut, cutter.teeth, opts)
+
+
+def _separating(tp, idx, blocks, sampled) -> np.ndarray | None:
+    """Without a mesh, the blocks between passes that surely leave the part: rapids and
+    moves that reach the top of the cut (a retract).  Near-vertical feed moves count as
+    air moves there, though a raster over a steep wall cuts on them: S must not change
+    on those.  With a mesh, every non-cutting block leaves the part (None)."""
+    if sampled.estimate is None:
+        return None
+    last = np.concatenate((idx.first_point[1:] - 1, [tp.n - 1]))
+    z = tp.xyz_mm[last, 2]
+    top = float(np.max(z[blocks.cutting], initial=-np.inf))
+    return (tp.motion[idx.first_point] == Motion.RAPID) | (z >= top - 1e-6)
+
+
+def _other_mode_time(blocks, job, cut, cutter, sep) -> float:
     """Cutting time (min) the other --s-changes mode would give: what the choice costs."""
     other = BETWEEN_PASSES if job.options.s_changes == ANYWHERE else ANYWHERE
     try:
-        _, f_mm, _ = planner.plan(blocks, job.machine, cut, cutter.teeth,
-                                  replace(job.options, s_changes=other))
+        _, f_mm, _ = _plan_blocks(blocks, job, replace(job.options, s_changes=other), cut,
+                                  cutter, sep)
     except PlanningError:  # that mode cannot hold the cutting data here: no figure
         return float("nan")
     return cut_time_min(blocks, f_mm)

@@ -10,7 +10,12 @@ whose time lets the spindle reach the next pass's speed.
 A *pass* is a maximal run of consecutive cutting blocks (``Blocks.cutting``
 and planned) that moves some length; a spindle start also begins a new one.
 Runs of zero length (a move onto the point the tool is already at) are not
-passes: they take no time and carry no S of their own.
+passes: they take no time and carry no S of their own.  Without a mesh,
+"cutting" is a guess (near-vertical feed moves count as air moves, though a
+raster over a steep wall cuts on them), so the caller may say which blocks
+surely leave the part (``separates``: e.g. those that reach the top of the
+cut); the blocks between two runs separate passes only if one of them does,
+else they belong to the pass around them and S does not change there.
 
 The speed of pass p is the largest S_p with
 
@@ -40,9 +45,15 @@ from .model import CuttingData, Machine, PlanOptions
 _ROUNDING_RPM = 1.0
 
 
-def pass_ids(blocks: planner.Blocks) -> np.ndarray:
-    """(nb,) int: the pass of each block, numbered from 0 in program order; -1 between passes."""
+def pass_ids(blocks: planner.Blocks, separates: np.ndarray | None = None) -> np.ndarray:
+    """(nb,) int: the pass of each block, numbered from 0 in program order; -1 between passes.
+
+    ``separates`` : (nb,) bool or None (every gap separates): blocks that surely leave the
+    part; a spindle start or a block ncopt does not plan always separates.
+    """
     cut = blocks.cutting & blocks.planned
+    if separates is not None:
+        cut = cut | _bridged(cut, separates | blocks.spindle_start | ~blocks.planned)
     prev = np.concatenate(([False], cut[:-1]))
     start = cut & (~prev | blocks.spindle_start)
     pid = np.cumsum(start) - 1
@@ -53,6 +64,23 @@ def pass_ids(blocks: planner.Blocks) -> np.ndarray:
     keep = length > 0
     renumber = np.where(keep, np.cumsum(keep) - 1, -1)
     return np.where(pid >= 0, renumber[np.maximum(pid, 0)], -1)
+
+
+def _bridged(cut: np.ndarray, separates: np.ndarray) -> np.ndarray:
+    """(nb,) bool: the blocks of gaps between two runs of ``cut`` that hold no separating block."""
+    n = cut.shape[0]
+    if n == 0 or cut.all() or not cut.any():
+        return np.zeros(n, dtype=bool)
+    start = np.flatnonzero(~cut & np.concatenate(([True], cut[:-1])))
+    end = np.flatnonzero(~cut & np.concatenate((cut[1:], [True])))  # inclusive
+    inner = (start > 0) & (end < n - 1)  # a run of cuts on both sides
+    # each reduceat segment runs from a gap's start to the next gap's: its gap, then cuts
+    gap_sep = np.logical_or.reduceat(~cut & separates, start)
+    bridge = inner & ~gap_sep
+    out = np.zeros(n + 1, dtype=np.int64)
+    np.add.at(out, start[bridge], 1)
+    np.add.at(out, end[bridge] + 1, -1)
+    return np.cumsum(out[:-1]) > 0
 
 
 def profile(blocks: planner.Blocks, machine: Machine, cut: CuttingData, teeth: int,
@@ -143,9 +171,13 @@ def commands(speeds: np.ndarray, blocks: planner.Blocks, pid: np.ndarray) -> pla
 
 
 def plan(blocks: planner.Blocks, machine: Machine, cut: CuttingData, teeth: int,
-         opts: PlanOptions) -> tuple[planner.Emitted, np.ndarray, planner.Profile]:
-    """One S per pass -> F per block (mm/min): as :func:`ncopt.planner.plan` returns."""
-    pid = pass_ids(blocks)
+         opts: PlanOptions, separates: np.ndarray | None = None
+         ) -> tuple[planner.Emitted, np.ndarray, planner.Profile]:
+    """One S per pass -> F per block (mm/min): as :func:`ncopt.planner.plan` returns.
+
+    ``separates``: see :func:`pass_ids`.
+    """
+    pid = pass_ids(blocks, separates)
     s_lo, s_hi = planner.speed_limits(machine, cut, teeth)
     prof = profile(blocks, machine, cut, teeth, pid)
     em = commands(pass_speeds(prof, blocks, pid, machine, opts, s_lo, s_hi), blocks, pid)

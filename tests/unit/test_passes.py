@@ -52,6 +52,25 @@ def test_passes_are_runs_of_cutting_blocks_that_move():
     assert passes.pass_ids(b).tolist() == [0, 0, -1, -1, 1, 2, 2, -1, 3, -1, -1, 4]
 
 
+def test_without_a_mesh_only_gaps_that_surely_leave_the_part_separate_passes():
+    # a steep move inside a raster (taken for an air move) must not end the pass; a
+    # retract to the top of the cut does
+    kinds = "cc.cc..cc"
+    sep = np.array([0, 0, 0, 0, 0, 1, 0, 0, 0], bool)
+    b = blocks(kinds, req=[1000] * 9, time_s=[1] * 9)
+    assert passes.pass_ids(b, sep).tolist() == [0, 0, 0, 0, 0, -1, -1, 1, 1]
+    assert passes.pass_ids(b).tolist() == [0, 0, -1, 1, 1, -1, -1, 2, 2]  # a mesh: every gap
+    # the program's own S (a block ncopt does not plan) always separates
+    planned = np.ones(9, bool)
+    planned[2] = False
+    b = blocks(kinds, req=[1000] * 9, time_s=[1] * 9, planned=planned)
+    assert passes.pass_ids(b, sep).tolist() == [0, 0, -1, 1, 1, -1, -1, 2, 2]
+    # the bridged block keeps the pass's S: no S word inside a pass
+    b = blocks(kinds, req=[3000, 3000, 0, 2000, 2000, 0, 0, 9000, 9000], time_s=[1] * 9)
+    em, _, _ = passes.plan(b, MACHINE, CUT, 2, BETWEEN, sep)
+    assert em.s_cmd_rpm[:5].tolist() == [2000] * 5
+
+
 @pytest.mark.parametrize("caps, gaps", [
     ([3000, 9000, 2000], [2.0, 1.0]),   # the middle pass limited from both sides
     ([8000, 1500, 8000, 8000], [0.5, 3.0, 0.2]),  # a slow pass pulls its neighbours down
@@ -186,3 +205,35 @@ def test_grbl_programs_change_s_between_passes_by_default(make_bowl, bowl_index)
     s = rewrite_text(text, given, "grbl.nc", bowl_index).summary
     assert (s.s_changes, s.s_changes_source) == ("anywhere", "given")
     assert "would stop" in s.control_notes[0]
+
+
+def _dome_groups(groups=3, rows=4):
+    """A zig-zag over a dome without a mesh: ``groups`` of ``rows`` rows, a retract to Z30
+    between groups; the first row dips into a 3 mm deep notch on two near-vertical moves."""
+    lines = ["G21 G90 G94", "T1 M6", "S4000 M3"]
+    xs = np.arange(-20.0, 20.01, 1.0)
+    for g in range(groups):
+        for r in range(rows):
+            y = -20.0 + 3.0 * (g * rows + r)
+            row = xs[::-1] if r % 2 else xs
+            z = 10.0 - (row ** 2 + y ** 2) / 80.0
+            if r == 0:
+                lines += [f"G0 X{row[0]:.3f} Y{y:.3f} Z30", f"G1 Z{z[0]:.3f} F800"]
+            for k, (x, zk) in enumerate(zip(row, z)):
+                lines.append(f"G1 X{x:.3f} Y{y:.3f} Z{zk:.3f}")
+                if g == 0 and r == 0 and k == 20:  # the notch: down and up again
+                    lines += [f"G1 X{x + 0.05:.3f} Z{zk - 3:.3f}", f"G1 X{x + 0.1:.3f} Z{zk:.3f}"]
+        lines.append("G0 Z30")
+    return "\n".join(lines + ["M5", "M30"]) + "\n"
+
+
+def test_without_a_mesh_a_steep_move_inside_a_pass_is_no_place_for_s():
+    job = Job(cutter=Cutter(6.0, 2), machine=Machine(227.0, 15000.0),
+              cutting=CuttingData(60.0, 0.03), options=BETWEEN)
+    result = rewrite_text(_dome_groups(), job, "dome.nc")
+    assert result.summary.normals_from == "toolpath"
+    assert result.summary.passes == 3  # one per retract, the notch inside the first
+    out = parse_text(result.text)
+    s_lines = sorted(int(v) for v in out.word_line[out.word_letter == ord("S")])
+    texts = [out.line_text(v) for v in s_lines]
+    assert all(not t.startswith("G1 X") for t in texts), texts  # none on a raster move
