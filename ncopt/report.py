@@ -98,7 +98,7 @@ def from_rewrite(result, original_text: str, original_path: str, output_path: st
             runs.append(Run(f"{Path(path).name} ({role})", series, rep))
         sections.append(ToolSection(plan.tool, _describe(plan.cutter), tuple(runs)))
     s = result.summary
-    return ReportData(output_path, original_path, _settings(job, s.control, s.s_changes),
+    return ReportData(output_path, original_path, _settings(job, s.control, s.s_changes, True),
                       tuple(sections), s, tuple(s.warnings),
                       (original_text.splitlines(), result.text.splitlines()), _now())
 
@@ -128,7 +128,7 @@ def from_programs(program_text: str, program_path: str, against_text: str | None
                           tuple(runs))
     warnings = tuple(w for r in runs for w in r.report.warnings)
     lines = (against_text.splitlines(), program_text.splitlines()) if against_text else None
-    return ReportData(program_path, against_path, _settings(job, job.control, None),
+    return ReportData(program_path, against_path, _settings(job, job.control, None, False),
                       (section,), None, warnings, lines, _now())
 
 
@@ -137,7 +137,8 @@ def _describe(cutter) -> str:
     return f"D{cutter.diameter_mm:g} {kind}, {cutter.teeth} teeth"
 
 
-def _settings(job, control, s_changes) -> tuple:
+def _settings(job, control, s_changes, planned: bool) -> tuple:
+    """Machine, cutter and targets; with ``planned``, how ncopt planned too."""
     m, o = job.machine, job.options
     top = f"at most {m.max_feed_mm_min:g} mm/min" if m.max_feed_mm_min < float("inf") else \
         "no limit"
@@ -149,11 +150,11 @@ def _settings(job, control, s_changes) -> tuple:
     if job.cutting is not None:
         rows.append(("targets", f"vc {job.cutting.vc_m_min:.1f} m/min, "
                                 f"fz {job.cutting.fz_mm:.4f} mm"))
-    rows += [("planner", f"{o.planner}, fz {o.fz_policy} within +-{100 * o.fz_tolerance:g} %, "
-                         f"S steps of at least {o.min_rpm_step:g} RPM"),
-             ("control", control or "detected from the program")]
-    if s_changes:
-        rows.append(("S changes", s_changes))
+    if planned:
+        rows.append(("planner", f"{o.planner}, fz {o.fz_policy} within "
+                                f"+-{100 * o.fz_tolerance:g} %, S steps of at least "
+                                f"{o.min_rpm_step:g} RPM, S changes {s_changes}"))
+    rows.append(("control", control or "detected from the program"))
     return tuple(rows)
 
 
@@ -198,7 +199,7 @@ def write(path: str | Path, page: str) -> Path:
 
 
 def _subtitle(d: ReportData) -> str:
-    what = f"{d.against} -> {d.program}" if d.against else d.program
+    what = f"{d.against} → {d.program}" if d.against else d.program
     return f"{what} · ncopt {__version__} · {d.created}"
 
 
@@ -290,16 +291,18 @@ def _tools_table(d: ReportData) -> str:
         if len(s.runs) > 1:
             change = (100.0 * (last.cutting_time_min / first.cutting_time_min - 1.0)
                       if first.cutting_time_min > 0 else 0.0)
-            time = (f"{first.cutting_time_min:.2f} -> {last.cutting_time_min:.2f} min "
+            time = (f"{first.cutting_time_min:.2f} → {last.cutting_time_min:.2f} min "
                     f"({change:+.1f} %)")
         else:
             time = f"{last.cutting_time_min:.2f} min"
-        rows.append((name, s.cutter, time, f"{last.fz_in_band_pct:.2f} %",
+        rows.append((name, s.cutter, f"vc {first.vc_target_m_min:.1f} m/min, fz "
+                     f"{first.fz_target_mm:.4f} mm", time, f"{last.fz_in_band_pct:.2f} %",
                      f"{last.fz_max_over_pct:+.2f} / {-last.fz_min_under_pct:+.2f} %",
                      f"{last.vc_max_over_pct:+.2f} % (line {last.vc_max_over_line})",
                      f"{last.cut_length_mm / 1000:.2f} m"))
-    return _table("Per tool (simulated)", ("tool", "cutter", "cutting time", "fz in band",
-                                            "fz extremes", "vc at most", "cut length"), rows)
+    return _table("Per tool (simulated)", ("tool", "cutter", "targets", "cutting time",
+                                            "fz in band", "fz extremes", "vc at most",
+                                            "cut length"), rows)
 
 
 def _summary_section(summary) -> str:
@@ -539,7 +542,7 @@ def render_index(reports, base: Path, index_path: str | Path) -> str:
         time = ""
         if r.status == "ok":
             before, after = before + r.time_before_min, after + r.time_after_min
-            time = f"{r.time_before_min:.1f} -> {r.time_after_min:.1f}"
+            time = f"{r.time_before_min:.1f} → {r.time_after_min:.1f}"
         note = r.error or (f"no report: {r.report_error}" if r.report_error else "")
         rows.append(f"<tr><td>{link}</td><td>{_e(r.status)}</td><td>{r.blocks}</td>"
                     f"<td>{r.s_words}</td><td>{time}</td><td>{r.warnings}</td>"
@@ -547,7 +550,7 @@ def render_index(reports, base: Path, index_path: str | Path) -> str:
     counts = {k: sum(r.status == k for r in reports) for k in ("ok", "unchanged", "failed")}
     total = (f"{counts['ok']} rewritten, {counts['unchanged']} unchanged, {counts['failed']} "
              f"failed, of {len(reports)} files; estimated cutting time of the rewritten ones "
-             f"{before:.1f} -> {after:.1f} min")
+             f"{before:.1f} → {after:.1f} min")
     body = (f"<header><h1>ncopt batch report</h1><p class=meta>{_e(base)} · ncopt "
             f"{__version__} · {_now()}</p></header><section><p>{_e(total)}</p><table>"
             "<tr><th>file</th><th>status</th><th>blocks</th><th>S words</th>"
