@@ -73,8 +73,9 @@ def cut_length_m(series: SimSeries) -> np.ndarray:
     return np.cumsum(np.where(cut, step, 0.0))[cut] / 1000.0
 
 
-def along_path_figure(runs: list[tuple[str, SimSeries, SimReport]], title: str = ""):
-    """The figure of :func:`plot_along_path`.
+def along_path_figure(runs: list[tuple[str, SimSeries, SimReport]], title: str = "",
+                      max_points: int = MAX_POINTS):
+    """The figure of :func:`plot_along_path`, at most ``max_points`` per curve.
 
     The first program (the original, with ``--against``) is drawn dashed on top of
     the others, so where the curves agree (the effective diameter of an unchanged
@@ -89,7 +90,7 @@ def along_path_figure(runs: list[tuple[str, SimSeries, SimReport]], title: str =
             lw=0.7, zorder=2, color=colours[i % len(colours)])
         x = cut_length_m(series)
         for ax, name in zip(axes, ALONG):
-            xd, yd = decimate(x, getattr(series, name)[series.cutting])
+            xd, yd = decimate(x, getattr(series, name)[series.cutting], max_points=max_points)
             ax.plot(xd, yd, label=f"{Path(label).name} ({report.cutting_time_min:.1f} min)"
                     if ax is axes[0] else None, **style)
     target = runs[0][2]

@@ -35,7 +35,7 @@ from .simulate import SimReport, SimSeries
 
 CURVE_POINTS = 4000  # per curve and program (min/max buckets)
 PATH_POINTS = 30000  # 3D toolpath samples, all tools together
-PRINT_PATH_POINTS = 40000  # samples in the printed toolpath image
+PRINT_PATH_POINTS = 20000  # samples in the printed toolpath image
 DIFF_ROWS = 60  # changed blocks shown side by side
 COLOR_BY = (("s_rpm", "S [RPM]"), ("f_mm_min", "F [mm/min]"), ("d_eff_mm", "D_eff [mm]"),
             ("vc_m_min", "vc [m/min]"))
@@ -356,7 +356,7 @@ def _section(section: ToolSection, k: int, n: int) -> tuple[str, list]:
     runs = [(r.label, r.series, r.report) for r in section.runs]
     curves_id, path_id = f"curves-{k}", f"path-{k}"
     last = section.runs[-1].series
-    print_curves = png_bytes(along_path_figure(runs), dpi=90)
+    print_curves = png_bytes(along_path_figure(runs, max_points=CURVE_POINTS), dpi=90)
     print_path = png_bytes(toolpath_figure(last, "s_rpm", max_points=PRINT_PATH_POINTS), dpi=90)
     part = (f"<section class='plots along'><h2>Along the cut: {_e(name)}, {_e(section.cutter)}</h2>"
             f"<div id={curves_id} class='plot curves screen-only'></div>{_img(print_curves)}"
