@@ -1,26 +1,36 @@
-"""``ncopt`` command line: a thin typer layer over :mod:`ncopt.api`."""
+"""``ncopt`` command line: a thin typer layer over :mod:`ncopt.api`.
+
+Startup stays light: ``ncopt --help`` and ``ncopt version`` import neither numpy nor lark
+nor the api; each command imports what it needs in its body.  Every command runs inside
+:func:`_faults`, so an ncopt error, an interrupt (Ctrl-C or SIGTERM) or a failed write to
+stdout ends it with one line on stderr and an exit code of :class:`Exit`, never a
+traceback.  A command added with ``@app.command()`` gets the same.
+"""
 
 from __future__ import annotations
 
+import functools
 import json
 import os
+import signal
 import sys
-from dataclasses import replace
+import threading
+from contextlib import contextmanager
 from enum import IntEnum
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import TYPE_CHECKING, Annotated, Optional
 
 import typer
-from rich.console import Console
 
 from . import __version__
-from .api import Job, Summary, rewrite_file
-from .errors import (MeshError, NcoptError, NcParseError, PlanningError, UsageError,
+from .errors import (FileError, MeshError, NcoptError, NcParseError, PlanningError, UsageError,
                      VerificationError)
-from .contacts import Method
-from .controls import CONTROLS
-from .dialect import DECIMAL_POINT_CONVENTIONS
-from .model import Cutter, CuttingData, Machine, PlanOptions
+from .stdio import err, flush_stdout, read_programs, say, stdout_fault, write_stdout
+
+if TYPE_CHECKING:
+    from rich.console import Console
+
+    from .api import Job, Summary
 
 
 class Exit(IntEnum):
@@ -39,9 +49,26 @@ class Exit(IntEnum):
     INTERRUPTED = 130
 
 
-app = typer.Typer(add_completion=False, pretty_exceptions_show_locals=False,
-                  help="Rewrite S and F words of finishing programs for constant vc and fz.")
-err = Console(stderr=True, highlight=False, soft_wrap=True)
+DIFFERENT = 1  # ncopt diff: the files differ (as diff(1) says it)
+
+
+class _App(typer.Typer):
+    """typer.Typer whose commands all run inside :func:`_faults`."""
+
+    def command(self, *args, **kwargs):
+        register = super().command(*args, **kwargs)
+
+        def decorator(fn):
+            register(_guarded(fn))
+            return fn
+        return decorator
+
+
+app = _App(add_completion=False, pretty_exceptions_show_locals=False, no_args_is_help=True,
+           rich_markup_mode=None,
+           context_settings={"help_option_names": ["-h", "--help"]},
+           help="Rewrite S and F words of finishing programs for constant vc and fz.")
+
 
 # options shared by rewrite, batch and simulate
 Mesh = Annotated[Optional[Path], typer.Option(
@@ -97,10 +124,12 @@ AllowanceAlong = Annotated[str, typer.Option(
     "along the surface normal or the tool axis (finishing layers made by shifting Z).")]
 SInterval = Annotated[float, typer.Option(
     "--min-s-interval-ms", help="Least time between S words, ms (Sinumerik PLC).")]
+Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="No summary on stderr (errors "
+                                     "still are).")]
 
 
 def _exit_code(exc: NcoptError) -> Exit:
-    for kind, code in ((_IoError, Exit.IO), (UsageError, Exit.USAGE), (MeshError, Exit.MESH),
+    for kind, code in ((FileError, Exit.IO), (UsageError, Exit.USAGE), (MeshError, Exit.MESH),
                        (PlanningError, Exit.PLANNING), (VerificationError, Exit.VERIFICATION),
                        (NcParseError, Exit.PROGRAM)):
         if isinstance(exc, kind):
@@ -109,12 +138,72 @@ def _exit_code(exc: NcoptError) -> Exit:
 
 
 def _fail(exc: NcoptError) -> None:
-    err.print(str(exc), markup=False)
+    say(str(exc))
     raise typer.Exit(int(_exit_code(exc)))
 
 
-class _IoError(UsageError):
-    """A file cannot be read or written."""
+def _guarded(fn):
+    @functools.wraps(fn)
+    def run(*args, **kwargs):
+        with _faults():
+            return fn(*args, **kwargs)
+    return run
+
+
+@contextmanager
+def _faults():
+    """Run a command: errors, interrupts and stdout faults become one line and an exit code."""
+    previous = _on_sigterm(_interrupt)
+    try:
+        try:
+            yield
+        except typer.Exit:  # an exit code of the command's own (diff, batch)
+            flush_stdout()
+            raise
+        flush_stdout()  # what print() left in the buffer fails here, not at interpreter exit
+    except NcoptError as exc:
+        _fail(exc)
+    except KeyboardInterrupt:
+        say("ncopt: interrupted")
+        raise typer.Exit(int(Exit.INTERRUPTED)) from None
+    except OSError as exc:  # not wrapped on its way: a write to stdout
+        _fail(stdout_fault(exc) if exc.filename is None else
+              FileError(f"{exc.strerror}; check the path", str(exc.filename)))
+    finally:
+        _on_sigterm(previous)
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def _on_sigterm(handler):
+    """SIGTERM ends a command as Ctrl-C does (exit 130); the handler it replaced."""
+    if handler is None or threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, handler)
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        raise typer.Exit(_say_version())
+
+
+def _say_version() -> int:
+    """Print the version; the exit code (a closed stdout is exit 7 here too)."""
+    try:
+        write_stdout(f"{__version__}\n".encode())
+    except FileError as exc:
+        say(str(exc))
+        return int(Exit.IO)
+    return int(Exit.OK)
+
+
+@app.callback()
+def _root(version: Annotated[bool, typer.Option(
+        "--version", is_eager=True, callback=_print_version,
+        help="Print the version and exit.")] = False) -> None:
+    """Rewrite S and F words of finishing programs for constant vc and fz."""
 
 
 def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel=None,
@@ -128,6 +217,11 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
     Command-line values win; then the machine profile (--machine, else the
     profiles' default_machine); then ncopt's defaults.
     """
+    from .api import Job
+    from .contacts import Method
+    from .controls import CONTROLS
+    from .dialect import DECIMAL_POINT_CONVENTIONS
+    from .model import Cutter, CuttingData, Machine, PlanOptions
     from .profiles import load
 
     profiles = load(tools_file=tools_file)
@@ -205,36 +299,12 @@ def _job_options(values: dict) -> dict:
     return {k: v for k, v in values.items() if k in names}
 
 
-def _read(path: str) -> bytes:
-    try:
-        return Path(path).read_bytes()
-    except OSError as exc:
-        raise _IoError(f"cannot read the file: {exc.strerror}; check the path", path) from None
-
-
-def _write(output: Optional[str], data: bytes, input: str) -> None:
-    """stdout, or a new file written atomically (temporary file + rename)."""
-    if output is None or output == "-":
-        sys.stdout.buffer.write(data)
-        sys.stdout.buffer.flush()
-        return
-    target = Path(output)
-    if input != "-" and target.exists() and target.resolve() == Path(input).resolve():
-        raise UsageError("the output would overwrite the input; write to another file "
-                         "(or use ncopt batch --in-place, which keeps a backup)", output)
-    from .batch import write_atomic
-
-    try:
-        write_atomic(target, data, make_parents=False)  # a missing folder is the user's to make
-    except OSError as exc:
-        raise _IoError(f"cannot write the output: {exc.strerror}", output) from None
-
-
 @app.command()
 def rewrite(
     input: Annotated[str, typer.Argument(help="NC program to rewrite, or - for stdin.")],
     output: Annotated[Optional[str], typer.Option(
-        "-o", "--output", help="Where to write; - or omitted: stdout.")] = None,
+        "-o", "--output", help="Where to write: a file, a folder (ending in /: the input's "
+        "name inside it); - or omitted: stdout.")] = None,
     mesh: Mesh = None, diameter: Diameter = None, corner_radius: CornerRadius = None,
     teeth: Teeth = 2, vc: Vc = None, fz: Fz = None, accel: Accel = None,
     max_rpm: MaxRpm = None, min_rpm: MinRpm = None, max_feed: MaxFeed = None,
@@ -244,17 +314,21 @@ def rewrite(
     min_s_interval_ms: SInterval = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, method: MethodName = "contact", ap: Ap = 0.2,
-    allowance_along: AllowanceAlong = "normal",
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary on stderr.")] = False,
+    allowance_along: AllowanceAlong = "normal", quiet: Quiet = False,
 ) -> None:
     """Rewrite a program's S and F words; every other byte stays as it is."""
-    try:
-        job = make_job(**_job_options(locals()))
-        data = sys.stdin.buffer.read() if input == "-" else _read(input)
-        result = rewrite_file(input, job, mesh_path=mesh, data=data)
-        _write(output, result.text.encode("latin-1"), input)
-    except NcoptError as exc:
-        _fail(exc)
+    from .api import rewrite_file
+    from .fileio import output_file, write_output
+
+    job = make_job(**_job_options(locals()))
+    target = output_file(output, input)
+    [data] = read_programs([input])
+    result = rewrite_file(input, job, mesh_path=mesh, data=data)
+    text = result.text.encode("latin-1")
+    if target is None:
+        write_stdout(text)
+    else:
+        write_output(target, text)
     if not quiet:
         print_summary(result.summary, err)
 
@@ -298,8 +372,8 @@ def batch(
     output: Annotated[Optional[Path], typer.Option("-o", "--output", help="Output folder; "
                                                    "subfolders are mirrored.")] = None,
     jobs: Annotated[int, typer.Option("--jobs", "-j", help="Parallel processes.")] = 0,
-    in_place: Annotated[bool, typer.Option("--in-place", help="Replace the originals "
-                                           "(a backup NAME.bak is kept).")] = False,
+    in_place: Annotated[bool, typer.Option("--in-place", help="Replace the originals, each "
+                                           "kept as NAME.bak (NAME.1.bak, ... after it).")] = False,
     report: Annotated[Optional[Path], typer.Option("--report", help="Write a JSON report.")] = None,
     mesh: Mesh = None, diameter: Diameter = None, corner_radius: CornerRadius = None,
     teeth: Teeth = 2, vc: Vc = None, fz: Fz = None, accel: Accel = None,
@@ -310,34 +384,33 @@ def batch(
     min_s_interval_ms: SInterval = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, method: MethodName = "contact", ap: Ap = 0.2,
-    allowance_along: AllowanceAlong = "normal",
+    allowance_along: AllowanceAlong = "normal", quiet: Quiet = False,
 ) -> None:
     """Rewrite every program of a folder in parallel; one bad file never stops the others."""
-    from .batch import find_programs, run_batch, target_for
+    from .batch import Task, find_programs, plan_targets, prepare_output_folder, run_batch
     from .batchview import BatchView
+    from .fileio import write_output
 
-    try:
-        job = make_job(**_job_options(locals()))
-        base, files = find_programs(inputs)
-        if in_place and output is not None:
-            raise UsageError("give either -o OUTDIR or --in-place, not both")
-        tasks = [(str(f), str(target_for(f, base, output, in_place)), job, mesh,
-                  ".bak" if in_place else None) for f in files]
-    except NcoptError as exc:
-        _fail(exc)
-    if not tasks:
-        err.print(f"ncopt: no NC programs found in {inputs}", markup=False)
+    job = make_job(**_job_options(locals()))
+    base, files = find_programs(inputs)
+    targets = plan_targets(files, base, output, in_place, folder_given=Path(inputs).is_dir())
+    if not files:
+        say(f"ncopt: no NC programs found in {inputs}")
         raise typer.Exit(int(Exit.NOTHING_DONE))
-    view = BatchView(err, files)
+    if output is not None:
+        prepare_output_folder(output)
+    tasks = [Task(str(f), str(t), job, None if mesh is None else str(mesh), in_place)
+             for f, t in zip(files, targets)]
+    view = BatchView(err, files, quiet=quiet)
     try:
         with view:
             reports = run_batch(tasks, jobs or os.cpu_count() or 1, view.done)
     except KeyboardInterrupt:
-        err.print("ncopt: interrupted; finished files are complete, no partial file was left")
-        raise typer.Exit(int(Exit.INTERRUPTED))
+        say("ncopt: interrupted; finished files are complete, no partial file was left")
+        raise typer.Exit(int(Exit.INTERRUPTED)) from None
     view.table(reports, base)
     if report is not None:
-        report.write_text(json.dumps([r.to_dict() for r in reports], indent=2))
+        write_output(report, json.dumps([r.to_dict() for r in reports], indent=2).encode())
     failed = sum(r.status == "failed" for r in reports)
     raise typer.Exit(int(Exit.OK if failed == 0 else
                          Exit.NOTHING_DONE if failed == len(reports) else Exit.SOME_FAILED))
@@ -345,7 +418,8 @@ def batch(
 
 @app.command()
 def simulate(
-    program: Annotated[str, typer.Argument(help="NC program to replay (any program).")],
+    program: Annotated[str, typer.Argument(help="NC program to replay (any program), or - "
+                                           "for stdin.")],
     against: Annotated[Optional[str], typer.Option(
         "--against", help="Also replay this program (e.g. the original) and compare.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="One JSON summary on stdout.")] = False,
@@ -363,26 +437,28 @@ def simulate(
     tool_point: ToolPoint = "tip", tool: Tool = None, rapid: Rapid = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, control: Control = None, decimal_point: DecimalPoint = None,
+    quiet: Quiet = False,
 ) -> None:
     """Replay a program on a spindle that ramps at its real acceleration: time, fz, vc."""
+    from dataclasses import replace
+
     from .geometry import MeshIndex, load_stl
+    from .model import CuttingData
     from .simulate import simulate_program
 
-    try:
-        _check_outputs(color_by, csv, plot, plot_path)
-        job = make_job(**_job_options(locals()))
-        index = MeshIndex(load_stl(mesh)) if mesh else None
-        runs = []
-        for name in ([against] if against else []) + [program]:
-            text = _read(name).decode("latin-1")
-            report, series = simulate_program(text, job, index, path=name, sample_mm=sample)
-            if not runs and job.cutting is None:  # one target for all: the first program's
-                job = replace(job, cutting=CuttingData(report.vc_target_m_min,
-                                                       report.fz_target_mm))
-            runs.append((name, series, report))
-        _simulation_outputs(runs, as_json, csv, plot, plot_path, color_by)
-    except NcoptError as exc:
-        _fail(exc)
+    _check_outputs(color_by, csv, plot, plot_path)
+    job = make_job(**_job_options(locals()))
+    names = ([against] if against else []) + [program]
+    programs = read_programs(names)
+    index = MeshIndex(load_stl(mesh)) if mesh else None
+    runs = []
+    for name, data in zip(names, programs):
+        report, series = simulate_program(data.decode("latin-1"), job, index, path=name,
+                                          sample_mm=sample)
+        if not runs and job.cutting is None:  # one target for all: the first program's
+            job = replace(job, cutting=CuttingData(report.vc_target_m_min, report.fz_target_mm))
+        runs.append((name, series, report))
+    _simulation_outputs(runs, as_json, csv, plot, plot_path, color_by, quiet)
 
 
 COLOR_BY = ("s_rpm", "f_mm_min", "d_eff_mm", "vc_m_min")
@@ -398,10 +474,18 @@ def _check_outputs(color_by, csv, plot, plot_path) -> None:
             raise UsageError(f"{option} writes PNG, SVG or PDF: name the file .png, .svg or .pdf")
     for path in (csv, plot, plot_path):
         if path is not None and not Path(path).resolve().parent.is_dir():
-            raise _IoError("the folder to write into does not exist; create it first", str(path))
+            raise FileError("the folder to write into does not exist; create it first", str(path))
+    if (plot is not None or plot_path is not None) and not _has_matplotlib():
+        raise UsageError("plots need matplotlib: python -m pip install matplotlib (or, in "
+                         "ncopt's source folder, python -m pip install \".[plot]\")")
 
 
-def _simulation_outputs(runs, as_json, csv, plot, plot_path, color_by) -> None:
+def _has_matplotlib() -> bool:
+    from importlib.util import find_spec
+    return find_spec("matplotlib") is not None
+
+
+def _simulation_outputs(runs, as_json, csv, plot, plot_path, color_by, quiet=False) -> None:
     name, series, report = runs[-1]
     try:
         if csv is not None:
@@ -413,12 +497,13 @@ def _simulation_outputs(runs, as_json, csv, plot, plot_path, color_by) -> None:
             if plot_path is not None:
                 plot_toolpath(series, plot_path, color_by)
     except OSError as exc:
-        raise _IoError(f"cannot write the output: {exc.strerror or exc}", exc.filename) from None
+        raise FileError(f"cannot write the output: {exc.strerror or exc}; check the path",
+                        str(exc.filename)) from None
     if as_json:
         out = {r[0]: r[2].to_dict() for r in runs} if len(runs) > 1 else report.to_dict()
         print(json.dumps(out, indent=2))
         return
-    for name, _, rep in runs:
+    for name, _, rep in runs if not quiet else ():
         print_simulation(rep, err)
 
 
@@ -446,41 +531,44 @@ def inspect(
     control: Control = None, decimal_point: DecimalPoint = None,
 ) -> None:
     """Show what ncopt understands of a program before it changes anything."""
+    from .controls import CONTROLS
     from .inspect import inspect_text, render_inspection
+    from .stdio import stdout_console
 
-    try:
-        data = sys.stdin.buffer.read() if program == "-" else _read(program)
-        if control is not None and control not in CONTROLS:
-            raise UsageError(f"--dialect must be one of {', '.join(CONTROLS)}, not {control!r}")
-        info = inspect_text(data.decode("latin-1"), program, dialect=control,
-                            decimal_point=decimal_point)
-    except NcoptError as exc:
-        _fail(exc)
+    [data] = read_programs([program])
+    if control is not None and control not in CONTROLS:
+        raise UsageError(f"--dialect must be one of {', '.join(CONTROLS)}, not {control!r}")
+    info = inspect_text(data.decode("latin-1"), program, dialect=control,
+                        decimal_point=decimal_point)
     if as_json:
         print(json.dumps(info.to_dict(), indent=2))
     else:
-        render_inspection(info, Console(highlight=False, soft_wrap=True))
+        render_inspection(info, stdout_console(highlight=False, soft_wrap=True))
 
 
 @app.command()
 def diff(
-    original: Annotated[str, typer.Argument(help="The original program.")],
-    rewritten: Annotated[str, typer.Argument(help="The rewritten program.")],
+    original: Annotated[str, typer.Argument(help="The original program, or - for stdin.")],
+    rewritten: Annotated[str, typer.Argument(help="The rewritten program, or - for stdin.")],
     plain: Annotated[bool, typer.Option("--plain", help="Unified diff even on a terminal.")] = False,
+    no_pager: Annotated[bool, typer.Option("--no-pager", help="Print on the terminal, not "
+                                           "through $PAGER (less -R).")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing; the exit code "
+                                        "says whether the files differ.")] = False,
 ) -> None:
-    """Show which blocks changed: side by side on a terminal, a unified diff otherwise."""
-    from .diffview import render_side_by_side, write_unified
+    """Show which blocks changed: side by side on a terminal (paged), a unified diff otherwise.
 
-    try:
-        a = _read(original).decode("latin-1").splitlines()
-        b = _read(rewritten).decode("latin-1").splitlines()
-    except NcoptError as exc:
-        _fail(exc)
-    out = Console(highlight=False)
-    if plain or not out.is_terminal:
-        write_unified(original, rewritten, a, b, sys.stdout)
-    else:
-        render_side_by_side(original, rewritten, a, b, out)
+    Exit code 0 when the files are the same, 1 when they differ (as diff does).
+    """
+    from .diffview import show_diff
+
+    a, b = read_programs([original, rewritten])
+    if a == b:
+        return
+    if not quiet:
+        show_diff(original, rewritten, a.decode("latin-1").splitlines(),
+                  b.decode("latin-1").splitlines(), plain=plain, pager=not no_pager)
+    raise typer.Exit(DIFFERENT)
 
 
 @app.command()
@@ -488,41 +576,10 @@ def profiles(
     tools_file: ToolsFile = None,
 ) -> None:
     """List the machine, tool and cutting-data profiles found, and where from."""
-    from rich.table import Table
+    from .profiles import load, render_profiles
+    from .stdio import stdout_console
 
-    from .profiles import load, user_file
-
-    try:
-        found = load(tools_file=tools_file)
-    except NcoptError as exc:
-        _fail(exc)
-    out = Console(highlight=False)
-    out.print(f"profile files, later ones win (user file: {user_file()}; project file: "
-              "./ncopt.toml):", markup=False)
-    for src in found.sources:
-        out.print(f"  {src}", markup=False)
-    t = Table(title="machines")
-    for col in ("name", "accel rad/s^2", "max RPM", "control", "from"):
-        t.add_column(col)
-    for m in found.machines.values():
-        t.add_row(m.name, f"{m.accel_rad_s2:g}", f"{m.max_rpm:g}", m.control or "detected", m.source)
-    out.print(t)
-    t = Table(title="tools")
-    for col in ("T / name", "cutter", "from"):
-        t.add_column(col)
-    for key, (c, src) in found.tools.items():
-        kind = "ball" if c.is_ball else f"bull-nose r{c.corner_radius_mm:g}"
-        t.add_row(str(key), f"D{c.diameter_mm:g} {kind}, {c.teeth} teeth", src)
-    out.print(t)
-    t = Table(title="cutting data")
-    for col in ("material", "vc m/min", "fz mm", "from"):
-        t.add_column(col)
-    for name, (c, src) in found.cutting.items():
-        t.add_row(name, f"{c.vc_m_min:g}", f"{c.fz_mm:g}", src)
-    out.print(t)
-    if found.default_machine:
-        out.print(f"default machine: {found.default_machine[0]} ({found.default_machine[1]})",
-                  markup=False)
+    render_profiles(load(tools_file=tools_file), stdout_console(highlight=False))
 
 
 @app.command()
@@ -533,8 +590,14 @@ def version() -> None:
 
 def main() -> None:
     """Console entry point: ncopt errors become one located line and an exit code."""
+    signal.signal(signal.SIGTERM, _interrupt)  # from the start: SIGTERM is an interrupt
+    if sys.argv[1:] == ["version"]:  # typer would build its parameter checks first (0.1 s)
+        sys.exit(_say_version())
     try:
         app()
     except NcoptError as exc:  # raised outside a command body
-        err.print(str(exc), markup=False)
+        say(str(exc))
         sys.exit(int(_exit_code(exc)))
+    except KeyboardInterrupt:  # before a command started
+        say("ncopt: interrupted")
+        sys.exit(int(Exit.INTERRUPTED))

@@ -23,7 +23,7 @@ from rich.console import Console
 from typer.testing import CliRunner
 
 import ncopt
-from ncopt.cli import Exit, app
+from ncopt.cli import DIFFERENT, Exit, app
 from ncopt.diffview import render_side_by_side
 from ncopt.parse import parse_text
 from ncopt.profiles import EXAMPLES
@@ -436,7 +436,7 @@ def test_diff_identical_files(tmp_path):
 def test_diff_of_a_rewrite_is_a_unified_diff_of_s_and_f_words(bowl_opt):
     _, opt = bowl_opt
     result = invoke(["diff", BOWL_MPF, opt])
-    assert result.exit_code == Exit.OK and result.stderr == ""
+    assert result.exit_code == DIFFERENT and result.stderr == ""  # as diff(1): they differ
     out = result.stdout.splitlines()
     assert out[:2] == [f"--- {BOWL_MPF}", f"+++ {opt}"]
     a = bowl_lines()
@@ -467,7 +467,7 @@ def test_diff_plain_is_the_default_when_not_a_terminal(bowl_opt):
     _, opt = bowl_opt
     default = invoke(["diff", BOWL_MPF, opt])
     plain = invoke(["diff", BOWL_MPF, opt, "--plain"])
-    assert plain.exit_code == default.exit_code == Exit.OK
+    assert plain.exit_code == default.exit_code == DIFFERENT
     assert plain.stdout == default.stdout and plain.stdout.startswith("--- ")
 
 
