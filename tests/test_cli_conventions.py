@@ -6,6 +6,7 @@ from __future__ import annotations
 import re
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -154,3 +155,20 @@ def test_output_into_a_folder_and_a_path_ending_in_slash(pair, tmp_path):
     assert result.stderr == (f"{tmp_path}/newdir/: no such folder; create it first, or name a "
                              "file (without the trailing /)\n")
     assert not (tmp_path / "newdir").exists()
+
+
+# ------------------------------------------------------------------ the name ----
+def test_the_distribution_name_is_ours_and_the_hints_install_this_project(monkeypatch, pair):
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    assert project["name"] == ncopt.DISTRIBUTION != "ncopt"  # 'ncopt' is another project
+    assert project["scripts"] == {"ncopt": "ncopt.cli:main"}
+    readme = (ROOT / "README.md").read_text()
+    hints = re.findall(r"pip install ([^`\n]+)", readme)
+    assert hints and all(re.match(r"""(?:-e )?["']?\.(?:\[\w+\])?["']?(?: |$)|ncopt-cnc|matplotlib""",
+                                  h) for h in hints), hints
+    prog, _ = pair
+    monkeypatch.setattr("ncopt.cli._has_matplotlib", lambda: False)
+    result = invoke(["simulate", prog, *SPINDLE, "--plot", "p.png"])
+    assert result.exit_code == Exit.USAGE
+    assert result.stderr == ("plots need matplotlib: python -m pip install matplotlib (or, in "
+                             "ncopt's source folder, python -m pip install \".[plot]\")\n")

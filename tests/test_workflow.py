@@ -730,7 +730,8 @@ def test_usage_errors_do_not_name_a_phantom_input(args):
 def test_version_is_the_package_version_and_the_stamps(flat, tmp_path):
     result = invoke(["version"])
     assert result.exit_code == Exit.OK
-    assert result.stdout == f"{importlib.metadata.version('ncopt')}\n" == f"{ncopt.__version__}\n"
+    assert result.stdout == f"{importlib.metadata.version(ncopt.DISTRIBUTION)}\n" \
+        == f"{ncopt.__version__}\n"
     assert result.stderr == ""
     pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text())
     assert pyproject["project"]["version"] == ncopt.__version__
