@@ -7,10 +7,7 @@ stdout ends it with one line on stderr and an exit code of :class:`Exit`, never 
 traceback.  A command added with ``@app.command()`` gets the same.
 """
 
-from __future__ import annotations
-
 import functools
-import json
 import os
 import signal
 import sys
@@ -211,7 +208,7 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
              tool_point="tip", min_rpm_step=10.0, tool=None, rapid=None,
              fz_policy="centred", fz_band=2.0, control=None, min_s_interval_ms=None,
              machine=None, tools_file=None, cutter=None, material=None,
-             method="contact", ap=0.2, allowance_along="normal", decimal_point=None) -> Job:
+             method="contact", ap=0.2, allowance_along="normal", decimal_point=None) -> "Job":
     """A Job from command-line values and the profiles, checked; raises UsageError.
 
     Command-line values win; then the machine profile (--machine, else the
@@ -333,7 +330,7 @@ def rewrite(
         print_summary(result.summary, err)
 
 
-def print_summary(s: Summary, console: Console) -> None:
+def print_summary(s: "Summary", console: "Console") -> None:
     """The few lines a machinist reads after a rewrite."""
     say = lambda text: console.print(text, markup=False)  # noqa: E731
     say(f"ncopt: {s.blocks} blocks, {s.cutting_blocks} cutting blocks planned, "
@@ -410,6 +407,7 @@ def batch(
         raise typer.Exit(int(Exit.INTERRUPTED)) from None
     view.table(reports, base)
     if report is not None:
+        import json
         write_output(report, json.dumps([r.to_dict() for r in reports], indent=2).encode())
     failed = sum(r.status == "failed" for r in reports)
     raise typer.Exit(int(Exit.OK if failed == 0 else
@@ -500,6 +498,7 @@ def _simulation_outputs(runs, as_json, csv, plot, plot_path, color_by, quiet=Fal
         raise FileError(f"cannot write the output: {exc.strerror or exc}; check the path",
                         str(exc.filename)) from None
     if as_json:
+        import json
         out = {r[0]: r[2].to_dict() for r in runs} if len(runs) > 1 else report.to_dict()
         print(json.dumps(out, indent=2))
         return
@@ -507,7 +506,7 @@ def _simulation_outputs(runs, as_json, csv, plot, plot_path, color_by, quiet=Fal
         print_simulation(rep, err)
 
 
-def print_simulation(r, console: Console) -> None:
+def print_simulation(r, console: "Console") -> None:
     """The simulation summary a technologist reads before sending a program."""
     say = lambda text: console.print(text, markup=False)  # noqa: E731
     say(f"{r.path}: cutting {r.cutting_time_min:.2f} min, rapids {r.rapid_time_min:.2f} min, "
@@ -541,6 +540,7 @@ def inspect(
     info = inspect_text(data.decode("latin-1"), program, dialect=control,
                         decimal_point=decimal_point)
     if as_json:
+        import json
         print(json.dumps(info.to_dict(), indent=2))
     else:
         render_inspection(info, stdout_console(highlight=False, soft_wrap=True))
@@ -591,7 +591,7 @@ def version() -> None:
 def main() -> None:
     """Console entry point: ncopt errors become one located line and an exit code."""
     signal.signal(signal.SIGTERM, _interrupt)  # from the start: SIGTERM is an interrupt
-    if sys.argv[1:] == ["version"]:  # typer would build its parameter checks first (0.1 s)
+    if sys.argv[1:] in (["version"], ["--version"]):  # before typer builds its commands
         sys.exit(_say_version())
     try:
         app()

@@ -14,7 +14,6 @@ import os
 import sys
 
 from .errors import FileError, UsageError
-from .fileio import hint, read_input
 
 
 class _LazyConsole:
@@ -56,6 +55,8 @@ def say(text: str) -> None:
 
 def read_programs(names: list[str]) -> list[bytes]:
     """The programs' bytes; ``-`` is stdin, for one of them at most."""
+    from .fileio import read_input
+
     if names.count("-") > 1:
         raise UsageError("only one program can come from stdin (-)")
     return [read_input(name) for name in names]
@@ -90,6 +91,8 @@ def flush_stdout() -> None:
 
 def stdout_fault(exc: OSError) -> FileError:
     """A write to stdout failed: the error to report; nothing more goes there."""
+    from .fileio import hint
+
     silence_stdout()
     return FileError(f"cannot write the output: {exc.strerror}; {hint(exc)}", "<stdout>")
 

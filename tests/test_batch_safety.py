@@ -419,3 +419,34 @@ def test_the_report_of_a_real_in_place_run_names_its_backups(folder, tmp_path):
     assert entries["c.tap"]["status"] == "unchanged" and entries["c.tap"]["backup"] == ""
     top = (folder / "a.nc").read_text().splitlines()[:3]
     assert any(re.match(r"\(ncopt \S+ T1 vc=", line) for line in top), top
+
+
+def test_two_in_place_batches_at_once_keep_the_originals(tmp_path):
+    """Two --in-place batches with other options over one folder at the same time: the
+    first original of every file stays in NAME.bak, each later backup is a whole rewrite,
+    and a file one run finds changed under it is reported, not replaced."""
+    src = tmp_path / "in"
+    src.mkdir()
+    originals = {}
+    for i in range(6):
+        originals[f"p{i}.nc"] = dome(14, rev=i)
+        (src / f"p{i}.nc").write_bytes(originals[f"p{i}.nc"])
+    env = {**os.environ, "NO_COLOR": "1", "XDG_CONFIG_HOME": str(tmp_path / "config")}
+    runs = [subprocess.Popen([sys.executable, "-c", "from ncopt.cli import main; main()",
+                              "batch", str(src), "--in-place", "-q", "-j", "1", "--diameter",
+                              "6", "--accel", accel, "--max-rpm", "15000"],
+                             cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True) for accel in ("227", "100")]
+    results = [(r.wait(120), r.stderr.read()) for r in runs]
+    for code, err in results:
+        assert code in (Exit.OK, Exit.SOME_FAILED), err
+        for line in err.splitlines():
+            assert line.endswith("changed since ncopt read it (another ncopt run, or the CAM "
+                                 "wrote it again); left as it is; run again"), line
+    for name, original in originals.items():
+        kept = backups_of(src / name)
+        assert kept[0].name == f"{name}.bak" and kept[0].read_bytes() == original
+        for b in [src / name, *kept[1:]]:
+            text = b.read_text()
+            assert re.search(r"^\(ncopt \S+ T1 vc=", text, re.M) and text.endswith("M30\n"), b
+    assert not [p for p in src.iterdir() if p.name.endswith(TMP_SUFFIX)]
