@@ -2,17 +2,17 @@
 
 Startup stays light: ``ncopt --help`` and ``ncopt version`` import neither numpy nor lark
 nor the api; each command imports what it needs in its body.  Every command runs inside
-:func:`_faults`, so an ncopt error, an interrupt (Ctrl-C or SIGTERM) or a failed write to
-stdout ends it with one line on stderr and an exit code of :class:`Exit`, never a
-traceback.  A command added with ``@app.command()`` gets the same.
+:func:`ncopt.stdio.command_faults`, so an ncopt error, an interrupt (Ctrl-C or SIGTERM) or
+a failed write to stdout ends it with one line on stderr and an exit code of
+:class:`Exit`, never a traceback.  A command added with ``@app.command()`` gets the same.
 """
 
+# No `from __future__ import annotations` here: typer evaluates every string annotation when
+# it builds the commands, a third of the time `ncopt --help` took.
 import functools
 import os
 import signal
 import sys
-import threading
-from contextlib import contextmanager
 from enum import IntEnum
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Optional
@@ -22,7 +22,7 @@ import typer
 from . import __version__
 from .errors import (FileError, MeshError, NcoptError, NcParseError, PlanningError, UsageError,
                      VerificationError)
-from .stdio import err, flush_stdout, read_programs, say, stdout_fault, write_stdout
+from .stdio import command_faults, err, interrupt, read_programs, say, write_stdout
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -50,7 +50,7 @@ DIFFERENT = 1  # ncopt diff: the files differ (as diff(1) says it)
 
 
 class _App(typer.Typer):
-    """typer.Typer whose commands all run inside :func:`_faults`."""
+    """typer.Typer whose commands all run inside :func:`ncopt.stdio.command_faults`."""
 
     def command(self, *args, **kwargs):
         register = super().command(*args, **kwargs)
@@ -142,43 +142,9 @@ def _fail(exc: NcoptError) -> None:
 def _guarded(fn):
     @functools.wraps(fn)
     def run(*args, **kwargs):
-        with _faults():
+        with command_faults(_exit_code, Exit.INTERRUPTED):
             return fn(*args, **kwargs)
     return run
-
-
-@contextmanager
-def _faults():
-    """Run a command: errors, interrupts and stdout faults become one line and an exit code."""
-    previous = _on_sigterm(_interrupt)
-    try:
-        try:
-            yield
-        except typer.Exit:  # an exit code of the command's own (diff, batch)
-            flush_stdout()
-            raise
-        flush_stdout()  # what print() left in the buffer fails here, not at interpreter exit
-    except NcoptError as exc:
-        _fail(exc)
-    except KeyboardInterrupt:
-        say("ncopt: interrupted")
-        raise typer.Exit(int(Exit.INTERRUPTED)) from None
-    except OSError as exc:  # not wrapped on its way: a write to stdout
-        _fail(stdout_fault(exc) if exc.filename is None else
-              FileError(f"{exc.strerror}; check the path", str(exc.filename)))
-    finally:
-        _on_sigterm(previous)
-
-
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
-
-
-def _on_sigterm(handler):
-    """SIGTERM ends a command as Ctrl-C does (exit 130); the handler it replaced."""
-    if handler is None or threading.current_thread() is not threading.main_thread():
-        return None
-    return signal.signal(signal.SIGTERM, handler)
 
 
 def _print_version(value: bool) -> None:
@@ -590,7 +556,7 @@ def version() -> None:
 
 def main() -> None:
     """Console entry point: ncopt errors become one located line and an exit code."""
-    signal.signal(signal.SIGTERM, _interrupt)  # from the start: SIGTERM is an interrupt
+    signal.signal(signal.SIGTERM, interrupt)  # from the start: SIGTERM is an interrupt
     if sys.argv[1:] in (["version"], ["--version"]):  # before typer builds its commands
         sys.exit(_say_version())
     try:

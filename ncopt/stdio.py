@@ -1,4 +1,4 @@
-"""stdin, stdout and stderr at the edge of the command line.
+"""stdin, stdout, stderr and signals at the edge of the command line.
 
 A write to stdout that fails (a closed pipe: ``ncopt rewrite x | head -1``; a full disk;
 stdout closed with ``>&-``) becomes a FileError naming ``<stdout>``, and stdout is then
@@ -11,9 +11,15 @@ from __future__ import annotations
 
 import errno
 import os
+import signal
 import sys
+import threading
+from contextlib import contextmanager
+from typing import Callable, Iterator
 
-from .errors import FileError, UsageError
+import typer
+
+from .errors import FileError, NcoptError, UsageError
 
 
 class _LazyConsole:
@@ -105,3 +111,45 @@ def silence_stdout() -> None:
         os.close(null)
     except (OSError, ValueError, AttributeError):
         pass
+
+
+@contextmanager
+def command_faults(code_of: Callable[[NcoptError], int], interrupted: int) -> Iterator[None]:
+    """Run a command: an ncopt error, an interrupt (Ctrl-C or SIGTERM) or a failed write to
+    stdout becomes one line on stderr and the exit code ``code_of(error)`` or
+    ``interrupted``."""
+    previous = on_sigterm(interrupt)
+    try:
+        try:
+            yield
+        except typer.Exit:  # an exit code of the command's own (diff, batch)
+            flush_stdout()
+            raise
+        flush_stdout()  # what print() left in the buffer fails here, not at interpreter exit
+    except NcoptError as exc:
+        _fail(exc, code_of)
+    except KeyboardInterrupt:
+        say("ncopt: interrupted")
+        raise typer.Exit(interrupted) from None
+    except OSError as exc:  # not wrapped on its way: a write to stdout
+        _fail(stdout_fault(exc) if exc.filename is None else
+              FileError(f"{exc.strerror}; check the path", str(exc.filename)), code_of)
+    finally:
+        on_sigterm(previous)
+
+
+def _fail(exc: NcoptError, code_of: Callable[[NcoptError], int]) -> None:
+    say(str(exc))
+    raise typer.Exit(int(code_of(exc)))
+
+
+def interrupt(signum, frame):
+    """A signal handler: SIGTERM ends a command as Ctrl-C does."""
+    raise KeyboardInterrupt
+
+
+def on_sigterm(handler):
+    """Install a SIGTERM handler (main thread only); the handler it replaced."""
+    if handler is None or threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, handler)

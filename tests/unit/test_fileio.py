@@ -345,3 +345,19 @@ def test_two_runs_at_once_cannot_both_replace_a_file(tmp_path):
         assert "changed since ncopt read it" in next(d for k, d in outcomes if k == "refused")
         assert [p.read_bytes() for p in backups_of(prog)] == [b"original\n"]
     assert temporaries(tmp_path) == []
+
+
+@pytest.mark.skipif(not ROOT_USER, reason="only root may give a file to another user")
+def test_in_place_keeps_the_owner_where_it_may(tmp_path):
+    prog = tmp_path / "p.nc"
+    prog.write_bytes(b"v1\n")
+    os.chown(prog, 1234, 5678)
+    replace_in_place(prog, b"v1\n", b"r1\n")
+    for path in (prog, tmp_path / "p.nc.bak"):
+        st = path.stat()
+        assert (st.st_uid, st.st_gid) == (1234, 5678), path
+    out = tmp_path / "o.nc"
+    out.write_bytes(b"old\n")
+    os.chown(out, 1234, 5678)
+    write_output(out, b"new\n")  # a replaced output keeps its owner too
+    assert (out.stat().st_uid, out.stat().st_gid) == (1234, 5678)
