@@ -2,7 +2,8 @@
 
 * one bad file never stops the others; each file's outcome is reported truthfully;
 * outputs are written atomically (:mod:`ncopt.fileio`), so an interrupted or killed
-  batch leaves no partial output file, and workers whose parent is gone stop quietly;
+  batch leaves no partial output file (at most a temporary, which the next run in the
+  folder removes), and workers whose parent is gone stop quietly;
 * originals are never overwritten unless ``in_place``, which keeps every version it
   replaces as a backup (NAME.bak, NAME.1.bak, ...); an output folder that is, lies in
   or links to the input folder is refused;
@@ -178,46 +179,22 @@ def _short(exc: NcoptError) -> str:
     return where + exc.message
 
 
-class _Stopped(BaseException):
-    """A worker told to stop (SIGTERM, or its parent gone) while it works on a file."""
-
-
-_working = False  # in a worker process: a file is being processed
-
-
 def _worker_init() -> None:
-    # the parent handles Ctrl-C and SIGTERM: it stops the pool
+    # The parent handles Ctrl-C and SIGTERM: it stops the pool with SIGTERM, whose default
+    # ends a worker at once whichever of its threads the signal reaches (a Python handler
+    # would run only in the main thread, which may wait on a lock no signal interrupts).
+    # What a worker stopped mid-write leaves is a temporary with its pid in the name; the
+    # parent removes those once the pool is gone, and so does any later run in the folder.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, _stop)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     parent = mp.parent_process()
-    if parent is not None:  # a killed parent: stop the same way, with no traceback
+    if parent is not None:  # a killed parent: end the same way, with no traceback
         threading.Thread(target=_stop_with, args=(parent,), daemon=True).start()
 
 
 def _stop_with(parent) -> None:
     parent.join()
     os.kill(os.getpid(), signal.SIGTERM)
-
-
-def _stop(signum, frame) -> None:
-    """Stop at once: a file being written removes its temporary on the way out (the
-    exception passes fileio's cleanup), then the process ends without the interpreter's
-    shutdown, which could wait on a lock a thread of the parent held at the fork."""
-    if _working:
-        raise _Stopped
-    os._exit(128 + signum)
-
-
-def _work(task: Task) -> FileReport:
-    """process_one in a pool worker, stoppable by SIGTERM."""
-    global _working
-    _working = True
-    try:
-        return process_one(task)
-    except _Stopped:
-        os._exit(128 + signal.SIGTERM)
-    finally:
-        _working = False
 
 
 def run_batch(tasks: list[Task], jobs: int, on_done=None) -> list[FileReport]:
@@ -231,7 +208,7 @@ def run_batch(tasks: list[Task], jobs: int, on_done=None) -> list[FileReport]:
     ctx = mp.get_context("fork") if hasattr(os, "fork") else mp.get_context("spawn")
     pool = ctx.Pool(max(1, min(jobs, len(tasks))), initializer=_worker_init)
     try:
-        for report in pool.imap_unordered(_work, tasks):
+        for report in pool.imap_unordered(process_one, tasks):
             reports.append(report)
             if on_done:
                 on_done(report)
