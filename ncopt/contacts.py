@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .geometry import MeshIndex, contacts_from_mesh
+from .geometry import MeshIndex, mesh_contacts
 from .model import Contacts, Cutter, Toolpath
 from .pathnormals import PathNormals, contacts_from_path
 from .remaining import r_eff_material_mm
@@ -27,6 +27,7 @@ class Sampled:
     contacts: Contacts
     point: np.ndarray  # (m,) int
     estimate: PathNormals | None = None  # mesh-free only
+    gap_mm: np.ndarray | None = None  # (m,) with a mesh: clearance of the cutter, mm (< 0 inside)
 
 
 def sample_fractions(tp: Toolpath, sample_mm: float) -> tuple[np.ndarray, np.ndarray]:
@@ -95,13 +96,15 @@ class Method:
 
 
 def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index: MeshIndex | None,
-                 sample_mm: float, tol_mm: float, method: Method = Method()) -> Sampled:
-    """Contacts of ``cutter`` along the toolpath, from the mesh if there is one."""
+                 sample_mm: float, tol_mm: float, method: Method = Method(),
+                 stock_mm: float = 0.0) -> Sampled:
+    """Contacts of ``cutter`` along the toolpath, from the mesh if there is one
+    (``stock_mm``: the allowance the program leaves on the mesh)."""
     offset = np.array([0.0, 0.0, center_offset_mm(cutter)])
     if mesh_index is not None:
         xyz, point = sample_points(tp, sample_mm)
-        sampled = Sampled(contacts_from_mesh(xyz + offset, mesh_index, cutter, tol_mm=tol_mm),
-                          point)
+        found = mesh_contacts(xyz + offset, mesh_index, cutter, tol_mm, stock_mm=stock_mm)
+        sampled = Sampled(found.contacts, point, gap_mm=found.gap_mm)
     else:
         path = np.cumsum(tp.seg_len_mm)
         cutting = selected & ~air_moves(tp)
