@@ -68,7 +68,7 @@ def totals(a_lines: list[str], b_lines: list[str]) -> DiffTotals:
     return DiffTotals(max(len(a_lines), len(b_lines)), changed, s, f)
 
 
-_STAMP = re.compile(r"^\s*(?:\(|;)\s*ncopt \S+ T-?\d+ vc=")
+_STAMP = re.compile(r"^\s*(?:\(|;)\s*ncopt \S+ T-?\d+ (?:lines=\d+-\d+ )?vc=")  # 0.1 and later
 
 
 def _rows(a_lines: list[str], b_lines: list[str]) -> Iterator[tuple]:

@@ -172,3 +172,25 @@ def test_the_distribution_name_is_ours_and_the_hints_install_this_project(monkey
     assert result.exit_code == Exit.USAGE
     assert result.stderr == ("plots need matplotlib: python -m pip install matplotlib (or, in "
                              "ncopt's source folder, python -m pip install \".[plot]\")\n")
+
+
+def test_diff_pairs_a_stamped_rewrite_line_by_line(pair, monkeypatch):
+    """The stamp lines of any ncopt version are shown apart and the rest paired line by
+    line (difflib on a 1M-line program would take minutes)."""
+    from ncopt import diffview
+    from ncopt.diffview import _rows
+
+    def no_difflib(*args):
+        raise AssertionError("the rewrite went through difflib")
+
+    monkeypatch.setattr(diffview, "_rows_difflib", no_difflib)
+    prog, opt = pair
+    a = prog.read_text().splitlines()
+    b = opt.read_text().splitlines()
+    stamps = [i for i, line in enumerate(b[:5]) if line.startswith("(ncopt ")]
+    assert stamps and len(b) == len(a) + len(stamps)
+    rows = list(_rows(a, b))
+    assert [r[:2] for r in rows[:len(stamps)]] == [("change", None)] * len(stamps)
+    paired = [r for r in rows[len(stamps):] if r[0] != "fold"]
+    assert paired and all(r[1] is not None and r[3] is not None for r in paired)
+    assert all(a[r[1] - 1] == r[2] and b[r[3] - 1] == r[4] for r in paired)
