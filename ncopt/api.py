@@ -459,14 +459,13 @@ def _lag_warnings(prog, tp, idx, work: Work, targets: Targets, job: Job) -> tupl
     s_pt = tp.spindle_rpm.copy()
     s_block = np.where(np.isfinite(targets.s_value), targets.s_value, tp.spindle_rpm[idx.first_point])
     s_pt[start:] = np.repeat(s_block, counts)
-    rev = np.full(n, np.nan)
+    rev_block = np.full(idx.first_point.shape[0], np.nan)
     for p in work.plans:
         lo, hi = p.window
         check = p.blocks.cutting & p.blocks.planned & ~p.reduced & np.isfinite(p.f_mm_min)
-        blocks = np.arange(lo, hi)[check]
-        value = p.cutting.fz_mm * p.cutter.teeth
-        for b in blocks.tolist():  # a block's points: first_point[b] .. next first_point
-            rev[idx.first_point[b]:idx.first_point[b] + counts[b]] = value
+        rev_block[lo:hi][check] = p.cutting.fz_mm * p.cutter.teeth
+    rev = np.full(n, np.nan)
+    rev[start:] = np.repeat(rev_block, counts)
     bad = lagging_blocks(prog, tp, s_pt, _feed_after(tp, idx, targets), job.machine, rev,
                          job.options.fz_tolerance)
     if bad.size == 0:
