@@ -278,8 +278,10 @@ def _cutter(job, table, tool, n_tools, line_inch):
 
 def _plan_tool(tp, idx, job, mesh_index, tool, cutter, source, selected, path) -> ToolPlan:
     cut = job.cutting or as_stamped(nominal_cutting_data(tp, selected, cutter, path))
+    s_top = planner.speed_limits(job.machine, cut, cutter.teeth)[1]  # R_eff below: capped
     sampled = contacts_for(tp, cutter, selected, mesh_index, job.options.sample_mm,
-                           job.contact_tol_mm, job.method)
+                           job.contact_tol_mm, job.method,
+                           r_floor_mm=1000.0 * cut.vc_m_min / (2.0 * np.pi * s_top))
     c = sampled.contacts
     req = required_rpm(c.r_eff_mm, cut.vc_m_min)
     in_section = (tp.tool == tool)
