@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .geometry import MeshIndex, mesh_contacts
+from .memory import release_freed_memory
 from .model import Contacts, Cutter, Toolpath
 from .pathnormals import PathNormals, contacts_from_path
 from .remaining import r_eff_material_mm
@@ -128,6 +129,7 @@ def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index:
     longest interval between samples where the tool cuts; below ``r_floor_mm`` the
     requirement is capped at S_max, so R_eff differences there need no samples).
     """
+    release_freed_memory()  # the interpreter's and the mesh loading's leftovers
     offset = np.array([0.0, 0.0, center_offset_mm(cutter)])
     if mesh_index is not None:
         ref = Refinement(coarse_mm=sample_mm, r_floor_mm=r_floor_mm, contact_tol_mm=tol_mm)
@@ -143,6 +145,7 @@ def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index:
         sampled = Sampled(contacts, np.arange(tp.n), estimate)
     if method.name == "material":
         sampled = replace(sampled, contacts=_with_material(tp, cutter, sampled, method))
+    release_freed_memory()
     return sampled
 
 

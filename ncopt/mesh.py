@@ -67,11 +67,18 @@ def mesh_from_triangles(tri_mm: np.ndarray, merge_tol_mm: float = 1e-6) -> Mesh:
     Mesh
         Shared corners are shared vertices; triangles that collapse are dropped.
     """
-    pts = np.asarray(tri_mm, dtype=np.float64).reshape(-1, 3)
-    key = np.round(pts / merge_tol_mm).astype(np.int64)
-    order = np.lexsort(key.T[::-1])
+    pts = np.asarray(tri_mm).reshape(-1, 3)
+    if not np.issubdtype(pts.dtype, np.floating):
+        pts = pts.astype(np.float64)
+    # column by column, the sorted keys once: 1M triangles peak ~250 MB lower
+    key = np.empty(pts.shape, dtype=np.int64)
+    for c in range(3):
+        key[:, c] = np.round(pts[:, c].astype(np.float64) / merge_tol_mm)
+    order = np.lexsort((key[:, 2], key[:, 1], key[:, 0]))
+    key = key[order]
     new = np.ones(len(order), dtype=bool)
-    new[1:] = np.any(key[order[1:]] != key[order[:-1]], axis=1)
+    new[1:] = np.any(key[1:] != key[:-1], axis=1)
+    del key
     inverse = np.empty(len(order), dtype=np.int64)
     inverse[order] = np.cumsum(new) - 1
     F = inverse.reshape(-1, 3)
@@ -124,7 +131,8 @@ def load_stl(path: str | os.PathLike, merge_tol_mm: float = 1e-6) -> Mesh:
     except _STL_READ_ERRORS as exc:
         raise MeshError(f"not a readable STL file ({exc}); export the part again",
                         path=str(p)) from exc
-    tri = np.concatenate([m.vectors for m in parts]) if parts else np.zeros((0, 3, 3))
+    tri = (parts[0].vectors if len(parts) == 1 else
+           np.concatenate([m.vectors for m in parts]) if parts else np.zeros((0, 3, 3)))
     if tri.shape[0] == 0:
         raise MeshError("the STL holds no triangles; export the part again", path=str(p))
     if not np.all(np.isfinite(tri)):
