@@ -79,8 +79,9 @@ HOOKS = (
     ("tool table from comments", "ncopt.tooltable:tool_table"),
     ("nominal vc/fz", "ncopt.api:nominal_cutting_data"),
     ("contacts_for", "ncopt.contacts:contacts_for"),
-    ("sampling", "ncopt.contacts:sample_points"),
-    ("contacts (mesh)", "ncopt.geometry:contacts_from_mesh"),
+    ("sampling (even, before issue 14)", "ncopt.contacts:sample_points"),
+    ("sampling (where the geometry asks)", "ncopt.sampling:adaptive_samples"),
+    ("contacts (mesh)", "ncopt.geometry:mesh_contacts"),
     ("contacts (toolpath normals)", "ncopt.pathnormals:contacts_from_path"),
     ("blocks", "ncopt.planner:blocks_from_contacts"),
     ("planning", "ncopt.planner:plan"),
@@ -171,8 +172,11 @@ class PssSampler(threading.Thread):
         while not self._stop_event.wait(self.interval_s):
             kids = []
             for path in glob.glob(f"/proc/{os.getpid()}/task/*/children"):
-                with open(path) as fh:
-                    kids += fh.read().split()
+                try:
+                    with open(path) as fh:
+                        kids += fh.read().split()
+                except OSError:  # the thread ended meanwhile
+                    pass
             if not kids:
                 continue
             total = _pss_kb("self") + sum(_pss_kb(k) for k in kids)

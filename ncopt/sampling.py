@@ -13,8 +13,9 @@ selected moves: a continuous path):
 2. the interval between two neighbouring samples is halved, level by level, while
 
    * both ends cut, and it is longer than ``coarse_mm`` or the interpolation error of
-     ``R_eff``, estimated from the second differences at its ends as
-     ``max |R_eff''| h^2 / 8``, exceeds ``rel_tol`` of ``R_eff`` (+ ``abs_tol_mm``).
+     ``R_eff``, estimated as ``|R_eff''| h^2 / 8`` from the smaller of the second
+     differences at its two ends (both see a curve inside it; a kink at one end bends
+     one side only), exceeds ``rel_tol`` of ``R_eff`` (+ ``abs_tol_mm``).
      Below ``r_floor_mm`` the requirement is capped at the machine's S_max, so
      ``R_eff`` counts as ``r_floor_mm`` there and the flat bottom of a part costs
      nothing;
@@ -173,8 +174,9 @@ def _splits(anchors: _Anchors, ref: Refinement) -> tuple:
     and the fraction of that move at their middle."""
     pr, h = anchors.probe, np.diff(anchors.s)
     a_cut, b_cut = pr.cutting[:-1], pr.cutting[1:]
+    # curved inside only where both ends see it: a kink at an end bends one side only
     worst = _curvature(anchors, ref)
-    worst = np.fmax(worst[:-1], worst[1:])
+    worst = np.fmin(worst[:-1], worst[1:])
     r = _effective(anchors, ref)
     allowed = ref.rel_tol * np.minimum(r[:-1], r[1:]) + ref.abs_tol_mm
     with np.errstate(invalid="ignore"):
@@ -207,10 +209,8 @@ def _with_other_points(anchors: _Anchors, xyz_mm: np.ndarray, sel: np.ndarray) -
     rest = np.flatnonzero(other)
     nothing = Probe(np.zeros(rest.size), np.tile([0.0, 0.0, 1.0], (rest.size, 1)),
                     xyz_mm[rest], np.full(rest.size, np.inf), np.zeros(rest.size, dtype=bool))
-    point = np.concatenate((anchors.p, rest))
-    frac = np.concatenate((anchors.f, np.ones(rest.size)))
-    queried = np.concatenate((np.ones(anchors.p.size, bool), np.zeros(rest.size, bool)))
-    order = np.lexsort((frac, point))
-    probe = Probe(*(np.concatenate((a, b)) for a, b in zip(anchors.probe.columns(),
-                                                            nothing.columns())))
-    return Samples(point[order], frac[order], probe.take(order), queried[order])
+    at = np.searchsorted(anchors.p, rest, side="right")  # after the samples on its move
+    probe = Probe(*(np.insert(a, at, b, axis=0) for a, b in zip(anchors.probe.columns(),
+                                                                 nothing.columns())))
+    return Samples(np.insert(anchors.p, at, rest), np.insert(anchors.f, at, 1.0), probe,
+                   np.insert(np.ones(anchors.p.size, bool), at, False))
