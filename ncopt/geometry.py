@@ -64,7 +64,8 @@ import numpy as np
 from ncopt import tools
 from ncopt.errors import MeshError
 from ncopt.memory import release_freed_memory
-from ncopt.mesh import EdgeLengths, Mesh, load_stl, mesh_from_triangles, mesh_resolution_mm  # noqa: F401
+from ncopt.mesh import (EdgeLengths, Mesh, load_stl, mesh_from_triangles,  # noqa: F401
+                        mesh_resolution_mm, spatial_order)
 from ncopt.model import Contacts, Cutter
 from ncopt.threads import available_cpus, map_in_threads
 
@@ -282,8 +283,13 @@ class MeshIndex:
         return np.linalg.norm(P - point, axis=1), face, point
 
     def closest(self, points_mm: np.ndarray) -> Closest:
-        """Closest mesh point of each query point ``(m, 3)``, in chunks, in order."""
-        return Closest(*self.map_chunks(self._query, points_mm, pool=False))
+        """Closest mesh point of each query point ``(m, 3)``, in chunks, in order
+        (queried in :func:`ncopt.mesh.spatial_order`: the same answers, faster)."""
+        order = spatial_order(np.asarray(points_mm, dtype=np.float64))
+        found = self.map_chunks(self._query, np.asarray(points_mm)[order], pool=False)
+        back = np.empty_like(order)
+        back[order] = np.arange(order.size)
+        return Closest(*(a[back] for a in found))
 
 
 # ---------------------------------------------------------------- normals

@@ -143,6 +143,31 @@ def load_stl(path: str | os.PathLike, merge_tol_mm: float = 1e-6) -> Mesh:
     return mesh
 
 
+def spatial_order(points_mm: np.ndarray, cell_mm: float = 0.5) -> np.ndarray:
+    """Indices that sort points along a Z-order (Morton) curve of ``cell_mm`` cells.
+
+    Closest-point queries in this order run through the BVH with warm caches: the
+    paper's programs put points 0.75 mm apart along passes a fraction of a mm apart,
+    and in path order fcpw took 12.6-12.9 s CPU for 1M of them, in this order 7.0-8.5
+    s (points 0.11 mm apart: 9.2-9.7 s either way).  Coordinates wrap every 2^21
+    cells (1 km at 0.5 mm): the order stays a permutation.
+    """
+    if points_mm.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64)
+    g = np.floor((points_mm - points_mm.min(axis=0)) / cell_mm)
+    g = np.nan_to_num(g, nan=0.0, posinf=0.0).astype(np.int64) & 0x1FFFFF
+    code = np.zeros(points_mm.shape[0], dtype=np.int64)
+    for axis in range(3):
+        x = g[:, axis]
+        x = (x | (x << 32)) & 0x1F00000000FFFF
+        x = (x | (x << 16)) & 0x1F0000FF0000FF
+        x = (x | (x << 8)) & 0x100F00F00F00F00F
+        x = (x | (x << 4)) & 0x10C30C30C30C30C3
+        x = (x | (x << 2)) & 0x1249249249249249
+        code |= x << axis
+    return np.argsort(code, kind="stable")
+
+
 class EdgeLengths(NamedTuple):
     """Triangle edge lengths of a mesh, mm: compare them with the tool radius."""
 

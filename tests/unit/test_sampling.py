@@ -17,6 +17,7 @@ from ncopt.api import Job, nominal_cutting_data, rewrite_text
 from ncopt.contacts import (MAX_SAMPLES_PER_MOVE, _mesh_probe, contacts_for,
                             mesh_contacts_at_samples, path_contacts_at_samples, sample_points)
 from ncopt.geometry import MeshIndex, load_stl, mesh_from_triangles
+from ncopt.mesh import spatial_order
 from ncopt.interp import interpret
 from ncopt.model import Contacts, Cutter, Machine, Motion
 from ncopt.parse import parse_text
@@ -244,3 +245,25 @@ def test_samples_cover_every_block_end_in_path_order(wave, drawn):
     gap = np.linalg.norm(np.diff(pos, axis=0), axis=1)
     both = got.probe.cutting[q][:-1] & got.probe.cutting[q][1:] & case.sel[got.point[q][1:]]
     assert np.all(gap[both] <= 1.0 + 1e-9)
+
+
+# ---------------------------------------------------------------- query order
+
+
+@given(st.lists(st.tuples(*[st.floats(-1e12, 1e12, allow_nan=False)] * 3), max_size=60),
+       st.floats(0.01, 10.0))
+def test_spatial_order_is_a_permutation(points, cell_mm):
+    p = np.array(points, dtype=float).reshape(-1, 3)
+    order = spatial_order(p, cell_mm)
+    assert sorted(order.tolist()) == list(range(len(points)))
+
+
+def test_queries_in_spatial_order_give_the_path_order_answers(wave):
+    case = Case(wave_program(0.7, 0.5), BALL10)
+    centers = case.tp.xyz_mm + [0.0, 0.0, 5.0]
+    assert not np.array_equal(spatial_order(centers), np.arange(len(centers)))
+    got = wave.closest(centers)
+    one_by_one = [wave._query(c[None]) for c in centers[::37]]
+    for k, row in enumerate(range(0, len(centers), 37)):
+        assert got.face[row] == one_by_one[k][1][0]
+        np.testing.assert_array_equal(got.point_mm[row], one_by_one[k][2][0])
