@@ -35,6 +35,7 @@ class Sampled:
     contacts: Contacts
     point: np.ndarray  # (m,) int
     estimate: PathNormals | None = None  # mesh-free only
+    gap_mm: np.ndarray | None = None  # (m,) with a mesh: clearance of the cutter, mm (< 0 inside)
 
 
 def samples_per_move(tp: Toolpath, sample_mm: float) -> np.ndarray:
@@ -120,9 +121,10 @@ class Method:
 
 
 def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index: MeshIndex | None,
-                 sample_mm: float, tol_mm: float, method: Method = Method(), *,
-                 r_floor_mm: float = 0.0) -> Sampled:
-    """Contacts of ``cutter`` along the toolpath, from the mesh if there is one.
+                 sample_mm: float, tol_mm: float, method: Method = Method(),
+                 stock_mm: float = 0.0, *, r_floor_mm: float = 0.0) -> Sampled:
+    """Contacts of ``cutter`` along the toolpath, from the mesh if there is one
+    (``stock_mm``: the allowance the program leaves on the mesh).
 
     With a mesh: every block end of the ``selected`` moves and, inside them, samples
     where the geometry asks for them (:mod:`ncopt.sampling`; ``sample_mm`` is the
@@ -134,10 +136,10 @@ def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index:
     if mesh_index is not None:
         ref = Refinement(coarse_mm=sample_mm, r_floor_mm=r_floor_mm, contact_tol_mm=tol_mm)
         got = adaptive_samples(tp.xyz_mm + offset, selected,
-                               _mesh_probe(mesh_index, cutter, tol_mm), ref)
+                               _mesh_probe(mesh_index, cutter, tol_mm, stock_mm), ref)
         p = got.probe
         sampled = Sampled(Contacts(cc_mm=p.cc_mm, normal=p.normal, r_eff_mm=p.r_eff_mm,
-                                   cutting=p.cutting), got.point)
+                                   cutting=p.cutting), got.point, gap_mm=p.gap_mm)
     else:
         path = np.cumsum(tp.seg_len_mm)
         cutting = selected & ~air_moves(tp)
@@ -149,16 +151,17 @@ def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index:
     return sampled
 
 
-def _mesh_probe(mesh_index: MeshIndex, cutter: Cutter, tol_mm: float):
+def _mesh_probe(mesh_index: MeshIndex, cutter: Cutter, tol_mm: float, stock_mm: float = 0.0):
     """The query :func:`ncopt.sampling.adaptive_samples` makes of the mesh."""
     flat_mm = cutter.radius_mm - cutter.corner_radius_mm
 
     def query(centers_mm: np.ndarray) -> Probe:
-        mc = mesh_contacts(centers_mm, mesh_index, cutter, tol_mm)
+        mc = mesh_contacts(centers_mm, mesh_index, cutter, tol_mm, stock_mm=stock_mm)
         c = mc.contacts
         # a bull-nose's clearance is searched over its disc near the part only; the
         # centre's distance less the disc radius bounds it from below everywhere
-        return Probe(c.r_eff_mm, c.normal, c.cc_mm, mc.gap_mm - flat_mm, c.cutting)
+        return Probe(c.r_eff_mm, c.normal, c.cc_mm, mc.gap_mm - flat_mm, c.cutting,
+                     mc.gap_mm)
 
     return query
 

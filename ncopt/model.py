@@ -112,6 +112,37 @@ class Program:
 
 
 @dataclass(frozen=True)
+class LineState:
+    """The program's state per source line, (n_lines,) arrays: what the control has in
+    force when it runs each line (the line's own words included).
+
+    executed : bool, the control runs the line in reading order: not a subprogram body,
+        not after M2/M30 or the closing ``%``
+    tool : int32, active tool number (-1 before any)
+    s_rpm : float64, programmed S in force (0 before any S)
+    f_prog : float64, programmed F in force, in the program's units per minute (NaN
+        before any F)
+    s_known, f_known : bool, the S (F) in force is the program's own word: False after a
+        subprogram call, a macro, a block-delete line with an S (F) word or a line ncopt
+        does not interpret, and where the word is an expression ncopt cannot evaluate,
+        until the program states S (F) again
+    block_delete : bool, the line starts with ``/`` (it runs or not at the operator's switch)
+    canned : bool, a canned cycle (G73, G76, G81-G89) is in force on the line
+    call : bool, the line calls a subprogram or macro (M98, G65, L.., o-call, CALL)
+    """
+
+    executed: np.ndarray
+    tool: np.ndarray
+    s_rpm: np.ndarray
+    f_prog: np.ndarray
+    s_known: np.ndarray
+    f_known: np.ndarray
+    block_delete: np.ndarray
+    canned: np.ndarray
+    call: np.ndarray
+
+
+@dataclass(frozen=True)
 class Toolpath:
     """Cutter locations (CL points) of a program, one row per point.
 
@@ -139,8 +170,12 @@ class Toolpath:
         subprogram calls, expressions it cannot evaluate...): such moves are not planned.
     tool : (n,) int32
         Active tool number (-1 if none).
-    inch : bool
-        The program is in inches (G20) at its first move; words are written back in inch.
+    line_inch : (n_lines,) bool
+        The program is in inches (G20) at each line; words are written back in inch.
+    spindle_on : (n,) bool
+        The spindle turns (M3/M4 in force) during the move.
+    lines : LineState
+        The modal state per source line.
     warnings : tuple[str, ...]
         Located messages about lines left alone.
     """
@@ -155,6 +190,7 @@ class Toolpath:
     tool: np.ndarray
     line_inch: np.ndarray | None = None
     spindle_on: np.ndarray | None = None
+    lines: LineState | None = None
     warnings: tuple = ()
 
     def __post_init__(self) -> None:

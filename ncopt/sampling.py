@@ -74,6 +74,7 @@ class Probe:
 
     r_eff_mm, normal, cc_mm, cutting : as in :class:`ncopt.model.Contacts`
     gap_low_mm : a lower bound of the tool's clearance from the part, mm
+    gap_mm : the clearance as the query found it, mm (< 0 inside the part)
     """
 
     r_eff_mm: np.ndarray
@@ -81,9 +82,11 @@ class Probe:
     cc_mm: np.ndarray
     gap_low_mm: np.ndarray
     cutting: np.ndarray
+    gap_mm: np.ndarray
 
     def columns(self) -> tuple:
-        return (self.r_eff_mm, self.normal, self.cc_mm, self.gap_low_mm, self.cutting)
+        return (self.r_eff_mm, self.normal, self.cc_mm, self.gap_low_mm, self.cutting,
+                self.gap_mm)
 
     def take(self, rows: np.ndarray) -> "Probe":
         return Probe(*(a[rows] for a in self.columns()))
@@ -208,7 +211,8 @@ def _with_other_points(anchors: _Anchors, xyz_mm: np.ndarray, sel: np.ndarray) -
     other[anchors.p[anchors.f >= 1.0]] = False
     rest = np.flatnonzero(other)
     nothing = Probe(np.zeros(rest.size), np.tile([0.0, 0.0, 1.0], (rest.size, 1)),
-                    xyz_mm[rest], np.full(rest.size, np.inf), np.zeros(rest.size, dtype=bool))
+                    xyz_mm[rest], np.full(rest.size, np.inf), np.zeros(rest.size, dtype=bool),
+                    np.full(rest.size, np.inf))
     at = np.searchsorted(anchors.p, rest, side="right")  # after the samples on its move
     probe = Probe(*(np.insert(a, at, b, axis=0) for a, b in zip(anchors.probe.columns(),
                                                                  nothing.columns())))
