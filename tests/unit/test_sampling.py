@@ -210,9 +210,15 @@ def test_a_1e9_mm_move_in_simulate_is_capped_with_a_warning():
     assert len(ser_free) == len(ser)
 
 
-def test_rewrite_of_a_1e9_mm_move_plans_it():
-    res = rewrite_text(HUGE, Job(cutter=BALL16, machine=MACHINE), "huge.nc", plate())
-    assert res.summary.cutting_blocks == 1
+def test_rewrite_of_a_finish_with_a_1e9_mm_move_plans_it(wave):
+    """The 3D finish ends with a rapid 1e9 mm away (every move was sampled every mm:
+    the process was killed at 23 GiB): planned, in bounded memory."""
+    text = wave_program(1.0, 2.0).replace("G0 Z20\n", "G0 Z20\nG0 X1000000000\n")
+    res = rewrite_text(text, Job(cutter=BALL10, machine=MACHINE), "huge.nc", wave)
+    assert res.summary.cutting_blocks > 1500
+    case = Case(text, BALL10)
+    _, sampled = case.planned(wave)
+    assert sampled.contacts.r_eff_mm.size < 2 * case.tp.n  # not 1e9
 
 
 # ---------------------------------------------------------------- invariants
