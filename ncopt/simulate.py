@@ -408,6 +408,36 @@ def _spindle_runs(moves: _Moves, a: float) -> _Runs:
     return _Runs(first_move=first, w0_rpm=np.array(w0), of_move=np.cumsum(brk) - 1)
 
 
+def lagging_blocks(prog: Program, tp: Toolpath, s_rpm: np.ndarray, f_mm_min: np.ndarray,
+                   machine: Machine, rev_mm: np.ndarray, band: float) -> np.ndarray:
+    """Toolpath points (the moves ending there) where the real spindle, ramping toward the
+    commanded S at its acceleration, leaves fz out of its band at the move's start or end.
+
+    ``s_rpm``, ``f_mm_min``: (n,) S and F in force per point; ``rev_mm``: (n,) the target
+    feed per revolution fz z of each move to check (NaN: not checked).  The same machine model as
+    :func:`simulate_program`, at the ends of the moves only (fz is monotone inside a move:
+    F is constant and the spindle ramps one way), so it is cheap enough to run after
+    every rewrite.
+    """
+    job = Job(machine=machine)
+    moves = _move_table(prog, replace(tp, spindle_rpm=s_rpm, feed_mm_min=f_mm_min), job,
+                        np.ones(tp.n - 1, dtype=bool))
+    runs = _spindle_runs(moves, machine.accel_rpm_s)
+    run = runs.of_move
+    t0 = moves.t0_s - moves.t0_s[runs.first_move[run]]
+    a = machine.accel_rpm_s
+    start = spindle_ramp(runs.w0_rpm[run], moves.target_rpm, t0, a)
+    end = spindle_ramp(runs.w0_rpm[run], moves.target_rpm, t0 + moves.dt_s, a)
+    rev = rev_mm[1:]
+    check = np.isfinite(rev) & moves.feed & moves.known & (moves.target_rpm > 0)
+    speed = moves.speed_mm_min
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lo = speed / np.maximum(end, start) / rev - 1.0
+        hi = speed / np.minimum(end, start) / rev - 1.0
+    bad = check & ((hi > band * (1 + 1e-6) + 1e-9) | (lo < -band * (1 + 1e-6) - 1e-9))
+    return np.flatnonzero(bad) + 1
+
+
 def spindle_ramp(w0_rpm: np.ndarray, target_rpm: np.ndarray, tau_s: np.ndarray,
                  a_rpm_s: float) -> np.ndarray:
     """Speed ``tau_s`` after a ramp from ``w0_rpm`` toward ``target_rpm`` began, RPM.
@@ -522,10 +552,16 @@ def _where(x: np.ndarray, lines: np.ndarray) -> int:
 
 def _lag_stretches(series: SimSeries, weight: np.ndarray, cut: CuttingData,
                    band: float) -> tuple:
-    """Consecutive cut samples with fz out of band while the spindle is not at speed."""
+    """Consecutive cut samples with fz out of band while the spindle is not at speed, on
+    moves whose F means the target fz at the commanded S (a move the program runs at
+    another feed per tooth, a ramp or a plunge at its own feed, is off target by design,
+    not because the spindle lags)."""
     dev = series.fz_mm / cut.fz_mm - 1.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        meant = series.fz_mm * series.s_rpm / series.s_cmd_rpm / cut.fz_mm - 1.0
+    at_target = np.abs(meant) <= 2.0 * band
     lagging = np.abs(series.s_rpm - series.s_cmd_rpm) > _LAG_RPM
-    idx = np.flatnonzero(series.cutting & ~(np.abs(dev) <= band) & lagging)
+    idx = np.flatnonzero(series.cutting & ~(np.abs(dev) <= band) & lagging & at_target)
     if idx.size == 0:
         return ()
     new = np.concatenate(([True], np.diff(idx) > 1))
