@@ -101,6 +101,8 @@ class SimReport:
     move; NaN when nothing cuts.
 
     cutting_time_min : feed blocks that cut at some sample
+    feed_moves_time_min : every timed feed move (``ncopt.times``): the cutting time that
+        inspect, rewrite and batch give for the same program
     feed_time_min : the other feed blocks (approach, retract, air)
     rapid_time_min, total_time_min
     cut_length_mm : length of the feed blocks that cut
@@ -121,6 +123,7 @@ class SimReport:
     sample_mm: float
     samples: int
     cutting_time_min: float
+    feed_moves_time_min: float  # every timed feed move (ncopt.times): the programs' own time
     feed_time_min: float
     rapid_time_min: float
     total_time_min: float
@@ -207,7 +210,7 @@ class SimSeries:
 
 
 def simulate_file(path: str | Path, job: Job, mesh_path: str | Path | None, *,
-                  sample_mm: float = 0.1, band: float = 0.02) -> tuple[SimReport, SimSeries]:
+                  sample_mm: float = 0.1, band: float | None = None) -> tuple[SimReport, SimSeries]:
     """Read a program and a part mesh, and simulate (see :func:`simulate_program`)."""
     text = Path(path).read_bytes().decode("latin-1")
     mesh_index = MeshIndex(load_stl(mesh_path)) if mesh_path else None
@@ -218,7 +221,7 @@ def simulate_file(path: str | Path, job: Job, mesh_path: str | Path | None, *,
 def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = None, *,
                      path: str = "<input>", sample_mm: float = 0.1,
                      contacts: Contacts | None = None,
-                     band: float = 0.02) -> tuple[SimReport, SimSeries]:
+                     band: float | None = None) -> tuple[SimReport, SimSeries]:
     """Replay a program on the machine model of ``job``.
 
     Parameters
@@ -239,8 +242,9 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
         ``ncopt.contacts.sample_points(toolpath, sample_mm)``, e.g.
         ``ncopt.contacts.mesh_contacts_at_samples(...)``: an original and its
         rewrite have the same toolpath and can share them.
-    band : float
-        Relative fz band for ``fz_in_band_pct`` and the lag check.
+    band : float or None
+        Relative fz band for ``fz_in_band_pct`` and the lag check (None: the band an
+        ncopt stamp records, else 0.02).
 
     Returns
     -------
@@ -270,6 +274,8 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
     runs = _spindle_runs(moves, job.machine.accel_rpm_s)
     series, weight, mv = _sample(tp, moves, runs, job, sample_mm, mesh_index, contacts, path)
     s_words = int(np.count_nonzero(prog.word_letter == ord("S")))
+    if band is None:  # the band the rewrite held, as its stamp says; else 2 %
+        band = stamp.band_pct / 100.0 if stamp is not None and stamp.band_pct else 0.02
     report = _report(path, moves, series, weight, mv, cut, band, sample_mm, s_words,
                      _warnings(path, tp, moves, job.machine, series)
                      + _coarse_moves(path, tp, moves, sample_mm))
@@ -363,15 +369,18 @@ def _evaluated_tool(prog: Program, tp: Toolpath, job: Job, path: str) -> tuple[C
     mask = tool == used[0] if used else np.zeros(tool.shape, dtype=bool)
     if job.cutter is not None:
         return job.cutter, mask
-    info = cutter_for(tool_table(prog), used[0] if used else -1, len(used))
-    stamp = _stamp_of(prog, used[0] if used else -1)
-    if info is None and stamp is not None:  # the cutter ncopt planned with, in mm
+    number = used[0] if used else -1
+    stamp = _stamp_of(prog, number)
+    if stamp is not None:  # the cutter ncopt planned with (mm, its teeth), as rewrite reads it
         return stamp.cutter, mask
+    if number in job.tool_library:
+        return job.tool_library[number], mask
+    info = cutter_for(tool_table(prog), number, len(used))
     if info is None or info.kind not in (BALL, BULL):
         raise UsageError("the program's comments do not describe a ball or bull-nose cutter; "
                          "give --diameter (and --corner-radius for a bull-nose)", path)
     inch = tp.line_inch is not None and bool(np.any(tp.line_inch))
-    return info.cutter(job.teeth, MM_PER_INCH if inch else 1.0), mask
+    return info.cutter(info.teeth or job.teeth, MM_PER_INCH if inch else 1.0), mask
 
 
 @dataclass(frozen=True)
@@ -524,6 +533,7 @@ def _report(path, moves, series, weight, mv, cut: CuttingData, band, sample_mm, 
     return SimReport(
         path=path, vc_target_m_min=cut.vc_m_min, fz_target_mm=cut.fz_mm, band_pct=100 * band,
         sample_mm=sample_mm, samples=len(series), cutting_time_min=cutting_time,
+        feed_moves_time_min=cutting_time + feed_time,
         feed_time_min=feed_time, rapid_time_min=rapid_time,
         total_time_min=float(moves.dt_s.sum()) / 60.0,
         cut_length_mm=float(moves.length_mm[move_cuts].sum()),
