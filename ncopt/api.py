@@ -124,6 +124,17 @@ class Summary:
     passes: int = 0
     cut_time_other_min: float = float("nan")  # the whole program with the other s_changes
 
+    def to_dict(self) -> dict:
+        """The summary as plain JSON values (rewrite --json, batch reports)."""
+        from dataclasses import asdict
+
+        out = asdict(self)
+        out["time_change_pct"] = self.time_change_pct
+        out["mesh_fit"] = [dict(tool=t, **asdict(f)) for t, f in self.mesh_fit]
+        out["tools"] = [dict(tool=t, cutter=c, source=src) for t, c, src in self.tools]
+        out["skipped_tools"] = [dict(tool=t, why=w) for t, w in self.skipped_tools]
+        return _finite(out)
+
     @property
     def time_change_pct(self) -> float:
         if self.cut_time_before_min <= 0:
@@ -536,6 +547,17 @@ def nominal_cutting_data(tp: Toolpath, selected: np.ndarray, cutter: Cutter,
     """vc and fz the program itself runs at its nominal diameter over the ``selected``
     points (mask): its S and its cutting feed (see :mod:`ncopt.plans`)."""
     return _plans.nominal_cutting_data(tp, np.flatnonzero(selected), cutter, path)
+
+
+def _finite(value):
+    """NaN and infinities as None: JSON has neither."""
+    if isinstance(value, float):
+        return value if np.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    return value
 
 
 def _describe(cutter: Cutter) -> str:

@@ -334,6 +334,9 @@ def rewrite(
     material: Material = None, method: MethodName = "contact", ap: Ap = "0.2",
     allowance_along: AllowanceAlong = "normal", operations: Operations = None,
     shape: Shape = None, stock: Stock = "0", report: ReportFile = None, quiet: Quiet = False,
+    as_json: Annotated[bool, typer.Option(
+        "--json", help="The summary as one JSON object on stderr instead of text (stdout "
+        "stays the program).")] = False,
 ) -> None:
     """Rewrite a program's S and F words; every other byte stays as it is."""
     from .api import rewrite_file
@@ -358,7 +361,10 @@ def rewrite(
         from .report import from_rewrite
         _write_report(report, lambda index: from_rewrite(
             result, data.decode("latin-1"), input, output or "-", job, index), mesh, quiet)
-    if not quiet:
+    if as_json:
+        import json
+        say(json.dumps(result.summary.to_dict(), indent=2))
+    elif not quiet:
         print_summary(result.summary, err)
 
 
