@@ -177,7 +177,8 @@ def process_one(task: Task) -> FileReport:
                           operations=tuple((o.name, o.planned, o.reason)
                                            for o in getattr(exc, "operations", ())))
     except FileError as exc:  # names the output, or the file replaced in place
-        return _failed(task, str(exc))
+        same = exc.path is not None and Path(exc.path) == Path(task.source)
+        return _failed(task, exc.message if same else str(exc))
     except NcoptError as exc:
         return _failed(task, _short(exc))
     except Exception as exc:  # noqa: BLE001 - a bug on one file must not stop the batch
