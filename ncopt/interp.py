@@ -22,6 +22,7 @@ import numpy as np
 from .errors import NcoptError
 from .expr import Params, Unknown
 from .model import LineKind, Program, Toolpath
+from .orientation import Orientation, read_orientation
 
 MM_PER_INCH = 25.4
 
@@ -56,8 +57,13 @@ class StartState:
     chord_tol_mm: float = 0.005
 
 
-def interpret(prog: Program, start: StartState = StartState()) -> Toolpath:
+def interpret(prog: Program, start: StartState = StartState(),
+              kinematics: str | None = None) -> Toolpath:
     """Interpret a program into cutter locations.
+
+    ``kinematics``: the machine's kinematics (``ncopt.kinematics``) for
+    programs that tilt the tool with rotary axes; None: such moves are not
+    planned.
 
     Returns
     -------
@@ -72,9 +78,10 @@ def interpret(prog: Program, start: StartState = StartState()) -> Toolpath:
     executed = _executed_lines(prog, lines, warnings)
     _check_semantics(prog, lines, executed)
     modal = _modal_state(lines, start, executed)
+    orient = read_orientation(prog, lines, modal, executed, kinematics)
     pos_mm, known = _positions(prog, lines, modal, executed, poisoned, warnings)
     _check_comp_corners(prog, lines, modal, pos_mm, known, executed)
-    return _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings)
+    return _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings, orient)
 
 
 class _LineTable:
@@ -422,9 +429,12 @@ def _positions(prog, lines, modal, executed, poisoned, warnings):
     return pos, known
 
 
-def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings) -> Toolpath:
+def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
+                  orient: Orientation | None = None) -> Toolpath:
     motion = modal.motion
     axes_present = lines.present("X") | lines.present("Y") | lines.present("Z")
+    if orient is not None:  # a rotary-only move turns the tool: a move of its own
+        axes_present = axes_present | orient.rotary_move
     arc_words = lines.present("I") | lines.present("J") | lines.present("K") | lines.present("R")
     special = lines.has_g(G_NON_MODAL_MOVE)
     is_lin = np.isin(motion, [0, 10]) & axes_present
@@ -469,9 +479,11 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings) 
     mcode = rep(np.nan_to_num(motion[move_lines], nan=-10) // 10, -1).astype(np.int8)
     seg_known = end_known & prev_known
     seg_known &= ~inverse_or_rev[move_lines] & ~comp[move_lines]
+    if orient is not None:
+        seg_known &= orient.blocked[move_lines] == 0
     known_pts = rep(seg_known, False)
     feed_moves = np.isin(motion[move_lines], [10, 20, 30])
-    _warn_unplanned(prog, move_lines[feed_moves], seg_known[feed_moves], modal, warnings)
+    _warn_unplanned(prog, move_lines[feed_moves], seg_known[feed_moves], modal, warnings, orient)
     return Toolpath(
         xyz_mm=xyz, line=line, motion=mcode,
         feed_mm_min=rep(np.where(mcode_is_feed(motion[move_lines]), feed_mm[move_lines],
@@ -494,7 +506,7 @@ def _check_feed(prog, modal, move_lines) -> None:
         _fail(prog, bad[0], "feed move with zero feed rate; add an F word before it")
 
 
-def _warn_unplanned(prog, move_lines, seg_known, modal, warnings) -> None:
+def _warn_unplanned(prog, move_lines, seg_known, modal, warnings, orient=None) -> None:
     unknown = move_lines[~seg_known]
     if unknown.size == 0:
         return
@@ -503,7 +515,9 @@ def _warn_unplanned(prog, move_lines, seg_known, modal, warnings) -> None:
     stops = np.concatenate((unknown[breaks], [unknown[-1]]))
     for a, b in list(zip(starts.tolist(), stops.tolist()))[:20]:
         why = "position not known"
-        if modal.feed_mode[a] != 940:
+        if orient is not None and orient.blocked[a]:
+            why = orient.reasons[orient.blocked[a]]
+        elif modal.feed_mode[a] != 940:
             why = "inverse-time or per-revolution feed (G93/G95)"
         elif modal.comp[a] != 400:
             why = "cutter radius compensation (G41/G42) active"
