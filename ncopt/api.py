@@ -55,6 +55,7 @@ class Job:
     teeth: int = 2
     method: Method = Method()  # contact point (default) or remaining material
     decimal_point: str | None = None  # Fanuc input convention: calculator, is-b, is-c
+    kinematics: str | None = None  # 5-axis: how rotary angles tilt the tool (ncopt.kinematics)
     contact_tol_mm: float = 0.05
     verify: bool = True
     stamp: bool = True
@@ -185,7 +186,7 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     """
     found = detect(text)
     prog = read_text(text, path, job, found.name)
-    tp = interpret(prog)
+    tp = interpret(prog, kinematics=job.kinematics)
     mesh_index = _loaded(mesh_index)
     idx = planner.block_index(tp.line)
     s_style = detect_style(prog, S_CODE)
@@ -221,6 +222,8 @@ def _plan_tools(prog, tp, idx, job, mesh_index, stamps):
     """Plan every ball or bull-nose tool section with its own cutter."""
     feed = np.isin(tp.motion, [Motion.LINEAR, Motion.ARC_CW, Motion.ARC_CCW])
     plannable = feed & tp.known & tp.spindle_on
+    if tp.tool_axis is not None:  # the contacts do not follow a tilted axis yet
+        plannable &= np.all(tp.tool_axis == [0.0, 0.0, 1.0], axis=1)
     tools = np.unique(tp.tool[plannable]).tolist()
     if job.tool is not None:
         if job.tool not in tools:
@@ -248,9 +251,15 @@ def _plan_tools(prog, tp, idx, job, mesh_index, stamps):
                                 prog.path))
     if not plans:
         why = "; ".join(f"{_tool_name(t)}: {w}" for t, w in skipped) or "no feed moves with a " \
-            "running spindle and a known position"
+            "running spindle and a known position" + _first_left_alone(tp)
         raise NothingToPlan(f"nothing to plan ({why})", prog.path)
     return plans, skipped
+
+
+def _first_left_alone(tp: Toolpath) -> str:
+    """The first located 'not planned' warning, to say why nothing could be planned."""
+    first = next((w for w in tp.warnings if ": not planned (" in w), None)
+    return f"; the first moves left alone: {first}" if first else ""
 
 
 def _tool_name(tool: int) -> str:

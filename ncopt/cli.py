@@ -20,6 +20,7 @@ from .errors import (MeshError, NcoptError, NcParseError, PlanningError, UsageEr
 from .contacts import Method
 from .controls import CONTROLS
 from .dialect import DECIMAL_POINT_CONVENTIONS
+from .kinematics import check_name
 from .model import Cutter, CuttingData, Machine, PlanOptions
 
 
@@ -97,6 +98,11 @@ AllowanceAlong = Annotated[str, typer.Option(
     "along the surface normal or the tool axis (finishing layers made by shifting Z).")]
 SInterval = Annotated[float, typer.Option(
     "--min-s-interval-ms", help="Least time between S words, ms (Sinumerik PLC).")]
+KinematicsName = Annotated[Optional[str], typer.Option(
+    "--kinematics", help="The machine's 5-axis kinematics, for programs that tilt the tool "
+    "with rotary axes A/B/C: xyzac-trt, xyzac-head-table, xyzac-trt-linuxcnc, xyzbc-trt, "
+    "xyzbc-head-table, xyzbc-head-head, xyzbc-trt-linuxcnc, xyzbc-5axis-linuxcnc, or vector "
+    "(tool vectors in the program, also detected). Default: from --machine.")]
 
 
 def _exit_code(exc: NcoptError) -> Exit:
@@ -122,7 +128,8 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
              tool_point="tip", min_rpm_step=10.0, tool=None, rapid=None,
              fz_policy="centred", fz_band=2.0, control=None, min_s_interval_ms=None,
              machine=None, tools_file=None, cutter=None, material=None,
-             method="contact", ap=0.2, allowance_along="normal", decimal_point=None) -> Job:
+             method="contact", ap=0.2, allowance_along="normal", decimal_point=None,
+             kinematics=None) -> Job:
     """A Job from command-line values and the profiles, checked; raises UsageError.
 
     Command-line values win; then the machine profile (--machine, else the
@@ -141,6 +148,7 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
     rapid, control = pick(rapid, "rapid_mm_min", 10000.0), pick(control, "control", None)
     min_s_interval_ms = pick(min_s_interval_ms, "min_s_interval_ms", 0.0)
     decimal_point = pick(decimal_point, "decimal_point", None)
+    kinematics = check_name(pick(kinematics, "kinematics", None))
     if cutter is not None:
         if diameter is not None:
             raise UsageError("give --cutter or --diameter, not both")
@@ -196,6 +204,7 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
                                    min_s_interval_ms=min_s_interval_ms),
                tool=tool, teeth=teeth, control=control, control_from=control_from,
                method=Method(method, ap, allowance_along), decimal_point=decimal_point,
+               kinematics=kinematics,
                tool_library={k: c for k, (c, _) in profiles.tools.items() if isinstance(k, int)})
 
 
@@ -244,7 +253,7 @@ def rewrite(
     min_s_interval_ms: SInterval = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, method: MethodName = "contact", ap: Ap = 0.2,
-    allowance_along: AllowanceAlong = "normal",
+    allowance_along: AllowanceAlong = "normal", kinematics: KinematicsName = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary on stderr.")] = False,
 ) -> None:
     """Rewrite a program's S and F words; every other byte stays as it is."""
@@ -310,7 +319,7 @@ def batch(
     min_s_interval_ms: SInterval = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, method: MethodName = "contact", ap: Ap = 0.2,
-    allowance_along: AllowanceAlong = "normal",
+    allowance_along: AllowanceAlong = "normal", kinematics: KinematicsName = None,
 ) -> None:
     """Rewrite every program of a folder in parallel; one bad file never stops the others."""
     from .batch import find_programs, run_batch, target_for
@@ -363,6 +372,7 @@ def simulate(
     tool_point: ToolPoint = "tip", tool: Tool = None, rapid: Rapid = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, control: Control = None, decimal_point: DecimalPoint = None,
+    kinematics: KinematicsName = None,
 ) -> None:
     """Replay a program on a spindle that ramps at its real acceleration: time, fz, vc."""
     from .geometry import MeshIndex, load_stl
@@ -444,6 +454,7 @@ def inspect(
     program: Annotated[str, typer.Argument(help="NC program, or - for stdin.")],
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
     control: Control = None, decimal_point: DecimalPoint = None,
+    kinematics: KinematicsName = None,
 ) -> None:
     """Show what ncopt understands of a program before it changes anything."""
     from .inspect import inspect_text, render_inspection
@@ -453,7 +464,7 @@ def inspect(
         if control is not None and control not in CONTROLS:
             raise UsageError(f"--dialect must be one of {', '.join(CONTROLS)}, not {control!r}")
         info = inspect_text(data.decode("latin-1"), program, dialect=control,
-                            decimal_point=decimal_point)
+                            decimal_point=decimal_point, kinematics=check_name(kinematics))
     except NcoptError as exc:
         _fail(exc)
     if as_json:

@@ -42,7 +42,8 @@ class Inspection:
 
 
 def inspect_text(text: str, path: str = "<input>", *, dialect: str | None = None,
-                 decimal_point: str | None = None) -> Inspection:
+                 decimal_point: str | None = None,
+                 kinematics: str | None = None) -> Inspection:
     """Parse and interpret; raises a located NcoptError when the program is unreadable.
 
     ``dialect`` selects the grammar (None: the generic one) and, with the
@@ -57,7 +58,7 @@ def inspect_text(text: str, path: str = "<input>", *, dialect: str | None = None
     issue = decimal_point_issue(prog, dialect or found.name, decimal_point)
     if decimal_point is not None:
         prog = apply_decimal_point(prog, decimal_point)
-    tp = interpret(prog)
+    tp = interpret(prog, kinematics=kinematics)
     motion = tp.motion[1:]
     feed = np.isin(motion, [Motion.LINEAR, Motion.ARC_CW, Motion.ARC_CCW])
     arcs = np.isin(motion, [Motion.ARC_CW, Motion.ARC_CCW])

@@ -22,7 +22,7 @@ import numpy as np
 from .errors import NcoptError
 from .expr import Params, Unknown
 from .model import LineKind, Program, Toolpath
-from .orientation import Orientation, read_orientation
+from .orientation import Orientation, read_orientation, with_tool_axis
 
 MM_PER_INCH = 25.4
 
@@ -36,12 +36,17 @@ G_UNITS = {200, 210}
 G_FEED_MODE = {930, 940, 950}
 G_COMP = {400, 410, 420, 411, 421}
 G_NON_MODAL_MOVE = {280, 300, 530, 920, 921, 922, 923, 520, 100, 281, 301}
+# lines whose axis words are not a move's target: those above, and the origins of
+# coordinate rotations and tilted planes (G68, G68.2-G68.4, Haas G268)
+G_NOT_A_TARGET = G_NON_MODAL_MOVE | {680, 682, 683, 684, 2680}
 CANNED = {730, 760, 810, 820, 830, 840, 850, 860, 870, 880, 890}
 
 # opaque keywords known not to move the machine (Sinumerik settings)
 HARMLESS_OPAQUE = {"MSG", "CYCLE832", "DEF", "STOPRE", "WORKPIECE", "SOFT", "BRISK",
                    "FFWON", "FFWOF", "COMPCAD", "COMPON", "COMPOF", "COMPSURF", "G642",
-                   "G641", "G64", "TRAFOOF", "UPATH", "SPATH", "FGROUP", "FNORM", "FLIN"}
+                   "G641", "G64", "TRAFOOF", "UPATH", "SPATH", "FGROUP", "FNORM", "FLIN",
+                   # TCP and orientation modes: ncopt.orientation reads them
+                   "TRAORI", "ORIWKS", "ORIMKS", "ORIVECT", "ORIAXES"}
 FLOW_CONTROL = {"IF", "GOTO", "WHILE", "DO", "END", "REPEAT", "CALL", "PCALL", "LOOP",
                 "ENDLOOP", "FOR", "ENDFOR", "ENDIF", "ELSE", "ENDWHILE", "RET", "M17"}
 
@@ -81,7 +86,8 @@ def interpret(prog: Program, start: StartState = StartState(),
     orient = read_orientation(prog, lines, modal, executed, kinematics)
     pos_mm, known = _positions(prog, lines, modal, executed, poisoned, warnings)
     _check_comp_corners(prog, lines, modal, pos_mm, known, executed)
-    return _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings, orient)
+    tp = _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings, orient)
+    return tp if orient is None else with_tool_axis(tp, orient)
 
 
 class _LineTable:
@@ -408,7 +414,7 @@ def _unknown_events(prog, lines, modal, executed, poisoned, warnings) -> np.ndar
 def _positions(prog, lines, modal, executed, poisoned, warnings):
     """Absolute positions in mm per line (n,3) and whether each axis is known."""
     events = _unknown_events(prog, lines, modal, executed, poisoned, warnings)
-    special = lines.has_g(G_NON_MODAL_MOVE) | np.isin(modal.motion, list(CANNED))
+    special = lines.has_g(G_NOT_A_TARGET) | np.isin(modal.motion, list(CANNED))
     scale = np.where(modal.inch, MM_PER_INCH, 1.0)
     pos = np.zeros((lines.n, 3))
     known = np.zeros((lines.n, 3), dtype=bool)
@@ -436,7 +442,7 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
     if orient is not None:  # a rotary-only move turns the tool: a move of its own
         axes_present = axes_present | orient.rotary_move
     arc_words = lines.present("I") | lines.present("J") | lines.present("K") | lines.present("R")
-    special = lines.has_g(G_NON_MODAL_MOVE)
+    special = lines.has_g(G_NOT_A_TARGET)
     is_lin = np.isin(motion, [0, 10]) & axes_present
     is_arc = np.isin(motion, [20, 30]) & (axes_present | arc_words)
     move = (is_lin | is_arc) & executed & ~special & (prog.line_kind == LineKind.WORDS)

@@ -26,7 +26,7 @@ from lark.exceptions import UnexpectedInput
 
 from .dialect import DIALECTS, FANUC, GENERIC, GRBL
 from .errors import NcParseError, UsageError
-from .model import LineKind, Program
+from .model import VECTOR_WORD_CODES, LineKind, Program
 from .threads import available_cpus, map_in_threads
 
 # byte classes of the fast path
@@ -345,7 +345,7 @@ def _parse_slow_line(text: str, lo: int, hi: int, line_no: int, path: str, name:
             kind = LineKind.OPAQUE
             head = str(child.children[0]).strip()
             items.append(("opaque", head.rstrip("= \t")))
-        elif child.data in ("number_word", "expr_word"):
+        elif child.data in ("number_word", "expr_word", "vector_word"):
             items.append(("word", _word_record(child, lo, line_no)))
             if child.data == "expr_word":
                 items.append(("expr", None, ("word", lo + child.meta.start_pos, child.children[1])))
@@ -358,9 +358,11 @@ def _word_record(node: Tree, offset: int, line_no: int) -> tuple:
     letter_tok = node.children[0]
     start = offset + letter_tok.start_pos
     end = offset + node.meta.end_pos
-    if node.data == "number_word":
+    if node.data in ("number_word", "vector_word"):
         num = node.children[1]
-        return (line_no, ord(str(letter_tok).upper()), float(num), start, end, offset + num.start_pos)
+        code = VECTOR_WORD_CODES[str(letter_tok)[0].upper()] if node.data == "vector_word" \
+            else ord(str(letter_tok).upper())
+        return (line_no, code, float(num), start, end, offset + num.start_pos)
     value = node.children[1]
     vstart = value.meta.start_pos if isinstance(value, Tree) else value.start_pos
     return (line_no, ord(str(letter_tok).upper()), float("nan"), start, end, offset + vstart)
@@ -396,6 +398,7 @@ _CONSTRUCTS = {
     "COLON": "a ':' program or main block number",
     "assign": "a parameter assignment",
     "expr_word": "a word with a computed value",
+    "vector_word": "a Sinumerik tool vector word",
     "named_param": "a LinuxCNC named parameter",
     "eol_comment": "a ';' comment",
     "block_end": "a Heidenhain ISO block end",

@@ -253,7 +253,7 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
     if not sample_mm > 0:
         raise UsageError(f"sample spacing must be positive, got {sample_mm}", path)
     prog = read_text(prog_text, path, job)
-    tp = interpret(prog)
+    tp = interpret(prog, kinematics=job.kinematics)
     cutter, tool_mask = _evaluated_tool(prog, tp, job, path)
     job = replace(job, cutter=cutter)
     moves = _move_table(prog, tp, job, tool_mask)

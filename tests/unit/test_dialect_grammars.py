@@ -80,6 +80,10 @@ READS = {
         (":10 G1 X1", [], O),
         ('MSG("finishing X1 Y2")', [], O),
         ("N20 T4 D1", ["N20", "T4", "D1"], W),
+        ("G1 X1 A3=0.5 B3= -0 C3=.866F100", ["G1", "X1", "A3=0.5", "B3= -0", "C3=.866",
+                                             "F100"], W),  # TRAORI tool vector words
+        ("G1 X1 A3=R1*2", ["G1", "X1"], O),
+        ("G1 X1 A4=0.5", ["G1", "X1"], O),
     ],
     LINUXCNC: [
         ("%", [], P),
@@ -161,6 +165,8 @@ REFUSES = [
     (FANUC, "G1 X#<depth>", 6, "#<depth>", "a LinuxCNC named parameter", "linuxcnc"),
     (FANUC, "$H", 1, "$H", "a '$' system command or variable", "sinumerik, grbl"),
     (FANUC, "G1 X1 Y2 *", 10, "*", "a Heidenhain ISO block end", "heidenhain-iso"),
+    (FANUC, "G1 X1 A3=0.5", 9, "A3=0.5", "a Sinumerik tool vector word",
+     "sinumerik, heidenhain-iso"),
     (SINUMERIK, "#1=5", 1, "#1=5", "a parameter assignment", "fanuc, linuxcnc"),
     (SINUMERIK, "G1 X[1+2]", 5, "X[1+2]", "a word with a computed value", "fanuc, linuxcnc"),
     (SINUMERIK, "G1 X#<a>", 5, "#<a>", "a LinuxCNC named parameter", "linuxcnc"),

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from ncopt.api import Job, rewrite_text
-from ncopt.errors import NothingToPlan
+from ncopt.errors import NcoptError, NothingToPlan
 from ncopt.interp import interpret
 from ncopt.model import Cutter, CuttingData, Machine
 from ncopt.parse import parse_text
@@ -57,8 +57,8 @@ def test_tilting_rotary_moves_are_not_planned_without_kinematics():
     assert not p[5] and not p[6] and not p[7]
     w = warning_for(tp, 6)
     assert w == ("t.nc:6-8: not planned (the rotary axes (A, C) tilt the tool and no "
-                 "kinematics is given; pass --kinematics NAME as the machine is built); S/F "
-                 "left as programmed")
+                 "kinematics is given; pass --kinematics xyzac-trt, xyzac-head-table or "
+                 "xyzac-trt-linuxcnc as the machine is built); S/F left as programmed")
 
 
 def test_a_rotary_only_move_is_a_move_and_keeps_its_feed():
@@ -99,27 +99,49 @@ def test_an_unknown_rotary_value_is_not_planned():
     assert not p[4] and not p[5] and p[6]
 
 
-@pytest.mark.parametrize("ijk, planned", [("I0 J0 K1", True), ("I0 J0.5 K0.866", False),
-                                          ("I0.1 K1", False)])
-def test_g43_5_tool_vectors(ijk, planned):
+@pytest.mark.parametrize("ijk, expected", [("I0 J0 K1", None), ("I0 J0.5 K0.866", (0, .5, .866)),
+                                           ("I0.1 K1", (0.1, 0, 1))])
+def test_g43_5_tool_vectors_are_read(ijk, expected):
     tp = run(HEAD + "G43.5 H1\nG1 X10 " + ijk + "\nG1 X20\nG49\nG1 X30 Z1\n")
     p = planned_lines(tp)
-    assert p[5] is planned and p[6] is planned
-    assert p[8]  # G49 cancels, the vector with it
-    if not planned:
-        assert "tool vectors (G43.5 I J K" in warning_for(tp, 6)
+    assert p[6] and p[8]
+    if expected is None:
+        assert p[5] and tp.tool_axis is None
+        return
+    e = np.array(expected) / np.linalg.norm(expected)
+    at = {int(l): a for l, a in zip(tp.line, tp.tool_axis)}
+    assert np.allclose(at[5], e) and np.allclose(at[6], e)  # the vector holds
+    assert np.allclose(at[8], [0, 0, 1])  # G49 ends the vector mode
+    assert tp.kinematics == "vector"
 
 
-def test_sinumerik_vectors_are_not_planned_until_trafoof():
+def test_sinumerik_vectors_are_read_under_traori():
     text = ("G0 X0 Y0 Z5\nS4000 M3\nG1 Z0 F500\nTRAORI\n"  # 0-3
-            "G1 X10 Y0 Z0 A3=0 B3=0.5 C3=0.866\n"  # 4
-            "G1 X11 Y0 Z0\n"  # 5 position known again; the tool is still tilted
-            "G1 X12\n"  # 6
+            "G1 X10 Y0 Z0 A3=0 B3=0.5 C3=0.866\n"  # 4: the first move under TRAORI
+            "G1 X11 Y0 Z0\n"  # 5 the vector holds
+            "G1 X12 B3=1 C3=1\n"  # 6 A3 left out: 0
             "TRAFOOF\nG0 Z5\nG0 X0 Y0 Z0\nG1 X1\n")  # 7-10
     tp = run(text, dialect="sinumerik")
     p = planned_lines(tp)
-    assert not p[5] and not p[6]
-    assert p[10]
+    assert p[5] and p[6] and p[10]
+    at = {int(l): a for l, a in zip(tp.line, tp.tool_axis)}
+    assert np.allclose(at[5], np.array([0, 0.5, 0.866]) / np.linalg.norm([0, .5, .866]))
+    assert np.allclose(at[6], np.array([0, 1, 1]) / np.sqrt(2))
+    assert np.allclose(at[10], [0, 0, 1])
+
+
+def test_sinumerik_vectors_without_traori_are_not_planned():
+    tp = run(HEAD + "G1 X10 A3=0 B3=0.5 C3=0.866\nG1 X11\n", dialect="sinumerik")
+    p = planned_lines(tp)
+    assert not p[4] and not p[5]
+    assert "A3= B3= C3= without TRAORI" in warning_for(tp, 6)
+
+
+def test_a_zero_tool_vector_is_a_located_error():
+    with pytest.raises(NcoptError) as info:
+        run(HEAD + "G43.5 H1\nG1 X10 I0 J0 K0\n")
+    assert str(info.value).startswith("t.nc:6:1: the tool vector (G43.5 I J K) has no "
+                                      "direction; give the tool axis")
 
 
 @pytest.mark.parametrize("tilt, reset, dialect", [
@@ -143,7 +165,8 @@ def test_tilted_working_planes_are_not_planned_until_reset(tilt, reset, dialect)
     assert not p[a + 1] and not p[a + 2]
     b = a + 3 + reset.count("\n") + 1
     assert p[b + 1] and p[b + 2], (tp.warnings, p)
-    assert "not planned (a " in warning_for(tp, a + 3)
+    assert ("not planned (G68.2 without G53.1" if tilt.startswith("G68.2") else
+            "not planned (a ") in warning_for(tp, a + 3)
 
 
 def test_a_rotation_about_the_tool_axis_does_not_tilt():
@@ -166,3 +189,99 @@ def test_a_tilted_program_is_left_byte_for_byte():
     # only the planned block (line 5) and the restoring F on line 6 may differ
     assert out[-2].startswith("G1 X20 A10 C5") and "F500" in out[-2]
     assert out[-1] == src[-1]
+
+
+# ------------------------------------------------------------ rotary angles, with kinematics ----
+def test_rotary_angles_through_the_kinematics_and_pieces_of_a_turning_block():
+    from ncopt.kinematics import KINEMATICS, MAX_TURN_DEG
+
+    text = HEAD + "G1 X10 A20 C30\nG1 X20 A20 C33\nG1 X30\n"  # 4 turns from 0, 0; 5: C by 3
+    tp = run(text, kinematics="xyzac-trt")
+    assert tp.kinematics == "xyzac-trt"
+    p = planned_lines(tp)
+    assert p[4] and p[5] and p[6]
+    kin = KINEMATICS["xyzac-trt"]
+    rows = np.flatnonzero(tp.line == 4)
+    assert rows.size == int(np.ceil(50 / MAX_TURN_DEG))  # A 20 + C 30 deg in sum
+    assert np.isclose(tp.seg_len_mm[rows].sum(), 10.0)
+    f = (np.arange(rows.size) + 1) / rows.size
+    assert np.allclose(tp.xyz_mm[rows], np.c_[10 * f, 0 * f, 0 * f])  # the tip goes straight
+    assert np.allclose(tp.tool_axis[rows], kin.tool_axis(np.c_[20 * f, 0 * f, 30 * f]))
+    assert np.allclose(tp.tool_axis[tp.line == 6], kin.tool_axis(np.array([[20, 0, 33]])))
+    assert np.all(tp.line[1:] >= tp.line[:-1])
+
+
+def test_kinematics_that_lack_a_rotary_axis_of_the_program():
+    tp = run(HEAD + "G1 X10 B20 C30\nG1 X20\n", kinematics="xyzac-trt")
+    assert not planned_lines(tp)[5]
+    assert "the program turns B, which xyzac-trt does not have" in warning_for(tp, 6)
+
+
+def test_vector_kinematics_do_not_read_angles():
+    tp = run(HEAD + "G1 X10 A20 C30\nG1 X20\n", kinematics="vector")
+    assert not planned_lines(tp)[5]
+    assert ("--kinematics vector reads tool vectors, and these blocks turn the rotary axes "
+            "(A, C)") in warning_for(tp, 6)
+
+
+@pytest.mark.parametrize("on, off", [("G43.4 H1", "G49"), ("TRAORI", "TRAFOOF"),
+                                     ("M128", "M129"), ("M428", "M429")])
+def test_tool_centre_point_control_switched_on_and_off(on, off):
+    dialect = "sinumerik" if on == "TRAORI" else None
+    text = (HEAD + on + "\n"  # 4
+            "G1 X10 A20 C30\n"  # 5 planned (TCP on)
+            f"{off}\n"  # 6
+            "G1 X20\n"  # 7 tilted, TCP off: X Y Z are machine positions
+            f"{on}\nG1 X30\nG1 X40\n")  # 8-10 on again: 9 starts from a machine position
+    tp = run(text, dialect=dialect, kinematics="xyzac-trt")
+    p = planned_lines(tp)
+    assert p[5] and not p[7] and not p[9] and p[10]
+    assert "tool-centre-point control off" in warning_for(tp, 8)
+    assert "switched with the tool tilted" in warning_for(tp, 10)
+
+
+def test_the_block_that_switches_tcp_on_with_the_tool_tilted_is_not_planned():
+    tp = run(HEAD + "G43.4 H1 X10 A20 C30\nG1 X20\n", kinematics="xyzac-trt")
+    p = planned_lines(tp)
+    assert not p[4] and p[5]
+    assert "switches tool-centre-point control on" in warning_for(tp, 5)
+
+
+def test_arcs_keep_or_lose_the_tool_axis():
+    tp = run(HEAD + "G1 X10 A20 C30\n"  # 4
+             "G2 X20 Y0 I5 J0\n"  # 5 constant tilt: planned, the axis holds
+             "G2 X30 Y0 I5 J0 C40\n"  # 6 turns the tool: not planned
+             "G1 X31\n", kinematics="xyzac-trt")  # 7
+    p = planned_lines(tp)
+    assert p[5] and not p[6] and p[7]
+    arc = tp.tool_axis[tp.line == 5]
+    assert np.allclose(arc, arc[0]) and abs(arc[0, 2] - np.cos(np.radians(20))) < 1e-12
+    assert "an arc that turns the tool" in warning_for(tp, 7)
+
+
+# ------------------------------------------------------------------------ 3+2: G68.2 ----
+def test_g68_2_with_g53_1_is_planned_in_the_tilted_frame():
+    from ncopt.kinematics import euler_zxz
+
+    text = (HEAD + "G68.2 X10 Y0 Z5 I0 J30 K0\n"  # 4 the frame (its X Y Z are not a move)
+            "G53.1\n"  # 5 the tool turns to the frame's Z
+            "G0 X0 Y0 Z10\n"  # 6 every axis stated in the frame
+            "G1 Z0\n"  # 7
+            "G1 X10 Y5\n"  # 8
+            "G69\nG0 X0 Y0 Z50 A0 C0\nG1 Z40\n")  # 9-11
+    tp = run(text, kinematics="xyzac-trt")
+    p = planned_lines(tp)
+    assert p[7] and p[8] and p[11]
+    assert not p[6]  # the first move in the frame starts in the old one
+    r = euler_zxz(0, 30, 0)
+    end = tp.xyz_mm[tp.line == 8][-1]
+    assert np.allclose(end, np.array([10, 0, 5]) + r @ [10, 5, 0])
+    assert np.allclose(tp.tool_axis[tp.line == 8][-1], r[:, 2])
+    assert np.allclose(tp.tool_axis[tp.line == 11][-1], [0, 0, 1])
+    assert 4 not in planned_lines(tp)  # G68.2's X Y Z set the origin
+
+
+def test_g68_2_without_g53_1_is_not_planned():
+    tp = run(HEAD + "G68.2 X0 Y0 Z0 I0 J30 K0\nG0 X0 Y0 Z10\nG1 Z0\nG1 X10\n")
+    assert not planned_lines(tp)[7]
+    assert "G68.2 without G53.1" in warning_for(tp, 8)
