@@ -222,8 +222,6 @@ def _plan_tools(prog, tp, idx, job, mesh_index, stamps):
     """Plan every ball or bull-nose tool section with its own cutter."""
     feed = np.isin(tp.motion, [Motion.LINEAR, Motion.ARC_CW, Motion.ARC_CCW])
     plannable = feed & tp.known & tp.spindle_on
-    if tp.tool_axis is not None:  # the contacts do not follow a tilted axis yet
-        plannable &= np.all(tp.tool_axis == [0.0, 0.0, 1.0], axis=1)
     tools = np.unique(tp.tool[plannable]).tolist()
     if job.tool is not None:
         if job.tool not in tools:
@@ -244,6 +242,10 @@ def _plan_tools(prog, tp, idx, job, mesh_index, stamps):
             skipped.append((tool, why))
             continue
         selected = plannable & (tp.tool == tool)
+        if not cutter.is_ball and _tilted(tp, selected):
+            skipped.append((tool, "a bull-nose with a tilted tool axis: ncopt plans 5-axis "
+                            "moves with ball-end mills only"))
+            continue
         tool_job = job
         if job.cutting is None and stamp is not None:  # an optimised program: its nominal data
             tool_job = replace(job, cutting=stamp.cutting)
@@ -254,6 +256,11 @@ def _plan_tools(prog, tp, idx, job, mesh_index, stamps):
             "running spindle and a known position" + _first_left_alone(tp)
         raise NothingToPlan(f"nothing to plan ({why})", prog.path)
     return plans, skipped
+
+
+def _tilted(tp: Toolpath, selected: np.ndarray) -> bool:
+    """Some selected move's tool axis is not +Z."""
+    return tp.tool_axis is not None and bool(np.any(tp.tool_axis[selected, :2]))
 
 
 def _first_left_alone(tp: Toolpath) -> str:

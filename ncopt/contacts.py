@@ -5,6 +5,11 @@ contacts come from closest-point queries (:mod:`ncopt.geometry`).  Without a
 mesh, the CL points themselves are the samples and the normals come from the
 toolpath's own shape (:mod:`ncopt.pathnormals`); between two points the
 normal is their interpolation, so no interior samples are needed.
+
+The cutter centre is the programmed point moved ``tools.center_offset_mm``
+along the tool axis: +Z, or in 5 axes ``Toolpath.tool_axis`` (between two
+points the blend of theirs, :func:`sample_axes`), and R_eff is measured from
+that axis.
 """
 
 from __future__ import annotations
@@ -14,10 +19,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .geometry import MeshIndex, contacts_from_mesh
-from .model import Contacts, Cutter, Toolpath
-from .pathnormals import PathNormals, contacts_from_path
+from .kinematics import blend
+from .model import Contacts, Cutter, Motion, Toolpath
+from .pathnormals import (ONE_SIDED, ONE_SIDED_TILT_DEG, PathNormals, contacts_from_path,
+                          tilt_from_axis)
 from .remaining import r_eff_material_mm
-from .tools import center_offset_mm
+from .tools import center_offset_mm, r_eff_mm
 
 
 @dataclass(frozen=True)
@@ -27,6 +34,7 @@ class Sampled:
     contacts: Contacts
     point: np.ndarray  # (m,) int
     estimate: PathNormals | None = None  # mesh-free only
+    axis: np.ndarray | None = None  # (m, 3) unit tool axis per sample; None: +Z
 
 
 def sample_fractions(tp: Toolpath, sample_mm: float) -> tuple[np.ndarray, np.ndarray]:
@@ -56,6 +64,21 @@ def sample_points(tp: Toolpath, sample_mm: float) -> tuple[np.ndarray, np.ndarra
     return a + (b - a) * frac[:, None], point
 
 
+def sample_axes(tp: Toolpath, sample_mm: float) -> np.ndarray | None:
+    """Unit tool axis at each sample of :func:`sample_points` (m, 3), blended between
+    the points' axes as a TCP control moves it; None for a 3-axis toolpath."""
+    if tp.tool_axis is None:
+        return None
+    point, frac = sample_fractions(tp, sample_mm)
+    return blend(tp.tool_axis[np.maximum(point - 1, 0)], tp.tool_axis[point], frac)
+
+
+def centre_offsets(tp: Toolpath, cutter: Cutter, axis: np.ndarray | None) -> np.ndarray:
+    """(3,) or (m, 3): from the programmed point to the cutter centre, mm."""
+    off = center_offset_mm(cutter)
+    return np.array([0.0, 0.0, off]) if axis is None else off * axis
+
+
 def path_contacts_at_samples(tp: Toolpath, cutter: Cutter, selected: np.ndarray,
                              sample_mm: float) -> Contacts:
     """Mesh-free contacts on the samples of :func:`sample_points`: the per-point
@@ -67,20 +90,24 @@ def path_contacts_at_samples(tp: Toolpath, cutter: Cutter, selected: np.ndarray,
     normal = at_points.normal[prev] * (1.0 - frac)[:, None] + at_points.normal[point] * frac[:, None]
     normal /= np.maximum(np.linalg.norm(normal, axis=1), 1e-12)[:, None]
     xyz, _ = sample_points(tp, sample_mm)
-    cc = xyz + np.array([0.0, 0.0, center_offset_mm(cutter)]) - cutter.corner_radius_mm * normal
+    cc = xyz + centre_offsets(tp, cutter, sample_axes(tp, sample_mm)) \
+        - cutter.corner_radius_mm * normal
     return Contacts(cc_mm=cc, normal=normal, r_eff_mm=r, cutting=at_points.cutting[point])
 
 
 def air_moves(tp: Toolpath) -> np.ndarray:
     """(n,) bool: feed moves that cannot be cutting when no mesh says otherwise:
-    plunges and retracts (within 11 deg of vertical).
+    plunges and retracts (within 11 deg of vertical, or of the tool axis at their end).
 
     Other air moves are planned like cuts: with no neighbouring pass their
     normal is that of the move itself, which can only make them run faster.
     """
     d = np.diff(tp.xyz_mm, axis=0)
-    length = np.linalg.norm(d, axis=1)
-    return np.concatenate(([False], np.abs(d[:, 2]) > 0.98 * np.maximum(length, 1e-12)))
+    length = np.maximum(np.linalg.norm(d, axis=1), 1e-12)
+    air = np.abs(d[:, 2]) > 0.98 * length
+    if tp.tool_axis is not None:  # 5 axes: also along the tilted tool (retract along the axis)
+        air |= np.abs(np.einsum("ij,ij->i", d, tp.tool_axis[1:])) > 0.98 * length
+    return np.concatenate(([False], air))
 
 
 @dataclass(frozen=True)
@@ -97,23 +124,60 @@ class Method:
 def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index: MeshIndex | None,
                  sample_mm: float, tol_mm: float, method: Method = Method()) -> Sampled:
     """Contacts of ``cutter`` along the toolpath, from the mesh if there is one."""
-    offset = np.array([0.0, 0.0, center_offset_mm(cutter)])
     if mesh_index is not None:
         xyz, point = sample_points(tp, sample_mm)
-        sampled = Sampled(contacts_from_mesh(xyz + offset, mesh_index, cutter, tol_mm=tol_mm),
-                          point)
+        axis = sample_axes(tp, sample_mm)
+        sampled = Sampled(contacts_from_mesh(xyz + centre_offsets(tp, cutter, axis), mesh_index,
+                                             cutter, tol_mm=tol_mm, axis=axis), point, axis=axis)
     else:
-        path = np.cumsum(tp.seg_len_mm)
         cutting = selected & ~air_moves(tp)
-        contacts, estimate = contacts_from_path(tp.xyz_mm + offset, path, cutting, cutter)
-        sampled = Sampled(contacts, np.arange(tp.n), estimate)
+        if tp.tool_axis is None:
+            centres = tp.xyz_mm + centre_offsets(tp, cutter, None)
+            contacts, estimate = contacts_from_path(centres, np.cumsum(tp.seg_len_mm), cutting,
+                                                    cutter)
+        else:
+            contacts, estimate = _path_contacts_5axis(tp, cutter, cutting)
+        sampled = Sampled(contacts, np.arange(tp.n), estimate, tp.tool_axis)
     if method.name == "material":
         sampled = replace(sampled, contacts=_with_material(tp, cutter, sampled, method))
     return sampled
 
 
+def _path_contacts_5axis(tp: Toolpath, cutter: Cutter, cutting: np.ndarray):
+    """Mesh-free contacts with a tilted axis.  The normals come from the block ends'
+    ball centres (the pieces a turning block is cut into would change the neighbours
+    the estimate sees: a program in rotary angles would not read like the same program
+    in vectors), along the centres' own path; inside a straight block the normal is
+    blended between its ends and R_eff taken with the piece's own axis."""
+    centres = tp.xyz_mm + centre_offsets(tp, cutter, tp.tool_axis)
+    same = np.concatenate(([False], tp.line[1:] == tp.line[:-1]))
+    piece = np.concatenate((same[1:], [False])) & (tp.motion == Motion.LINEAR)
+    ends = np.flatnonzero(~piece)
+    step = np.linalg.norm(np.diff(centres[ends], axis=0), axis=1)
+    path = np.concatenate(([0.0], np.cumsum(step)))
+    c, est = contacts_from_path(centres[ends], path, cutting[ends], cutter, tp.tool_axis[ends])
+    if ends.size == tp.n:
+        return c, est
+    # each piece lies between the end before it and its block's end point
+    nxt = ends[np.searchsorted(ends, np.arange(tp.n))]
+    prv = ends[np.maximum(np.searchsorted(ends, np.arange(tp.n)) - 1, 0)]
+    at = np.searchsorted(ends, np.arange(tp.n))
+    span = np.maximum(nxt - prv, 1)
+    frac = np.where(piece, (np.arange(tp.n) - prv) / span, 1.0)
+    a, b = np.maximum(at - 1, 0), at
+    normal = blend(est.normal[a], est.normal[b], frac)
+    conf = np.minimum(est.confidence[a], est.confidence[b])
+    normal[~piece], conf[~piece] = est.normal[at[~piece]], est.confidence[at[~piece]]
+    tilt = np.where(conf == ONE_SIDED, np.radians(ONE_SIDED_TILT_DEG), 0.0)
+    r_eff = r_eff_mm(cutter, tilt_from_axis(normal, tilt, tp.tool_axis), tp.tool_axis)
+    contacts = Contacts(cc_mm=centres - cutter.corner_radius_mm * normal, normal=normal,
+                        r_eff_mm=r_eff, cutting=cutting.copy())
+    return contacts, PathNormals(normal, conf, est.stepover_mm)
+
+
 def _with_material(tp: Toolpath, cutter: Cutter, sampled: Sampled, method: Method) -> Contacts:
     """R_eff from the remaining material, with each sample's direction of motion."""
     d = tp.xyz_mm[sampled.point] - tp.xyz_mm[np.maximum(sampled.point - 1, 0)]
-    r = r_eff_material_mm(cutter, sampled.contacts.normal, d, method.ap_mm, method.along)
+    r = r_eff_material_mm(cutter, sampled.contacts.normal, d, method.ap_mm, method.along,
+                          sampled.axis)
     return replace(sampled.contacts, r_eff_mm=r)

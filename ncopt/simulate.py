@@ -47,12 +47,11 @@ import numpy as np
 
 from .api import Job, nominal_cutting_data, read_text
 from .stamp import read_stamps
-from .contacts import sample_points, path_contacts_at_samples
+from .contacts import centre_offsets, path_contacts_at_samples, sample_axes, sample_points
 from .errors import UsageError
 from .geometry import MeshIndex, contacts_from_mesh, load_stl
 from .interp import MM_PER_INCH, ffill, interpret
 from .model import Contacts, Cutter, CuttingData, Machine, Motion, Program, Toolpath
-from .tools import center_offset_mm
 from .tooltable import BALL, BULL, cutter_for, tool_table
 
 __all__ = ["LagStretch", "SimReport", "SimSeries", "simulate_file", "simulate_program",
@@ -452,9 +451,12 @@ def _contact_radius(tp, job, xyz_u, uidx, cand, sample_mm, mesh_index, contacts,
                              "compute them on ncopt.contacts.sample_points with the same spacing",
                              path)
         r_u, cut_u = contacts.r_eff_mm[rows], contacts.cutting[rows]
-    else:
-        centers = xyz_u[rows] + np.array([0.0, 0.0, center_offset_mm(job.cutter)])
-        got = contacts_from_mesh(centers, mesh_index, job.cutter, tol_mm=job.contact_tol_mm)
+    else:  # the tool axis from the program text (5 axes), the centre along it
+        axis = sample_axes(tp, sample_mm)
+        axis = None if axis is None else axis[rows]
+        centers = xyz_u[rows] + centre_offsets(tp, job.cutter, axis)
+        got = contacts_from_mesh(centers, mesh_index, job.cutter, tol_mm=job.contact_tol_mm,
+                                 axis=axis)
         r_u, cut_u = got.r_eff_mm, got.cutting
     r_all = np.full(xyz_u.shape[0], np.nan)
     touch_all = np.zeros(xyz_u.shape[0], dtype=bool)
