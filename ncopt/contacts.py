@@ -22,9 +22,22 @@ from .geometry import MeshIndex, contacts_from_mesh
 from .kinematics import blend
 from .model import Contacts, Cutter, Motion, Toolpath
 from .pathnormals import (ONE_SIDED, ONE_SIDED_TILT_DEG, PathNormals, contacts_from_path,
-                          tilt_from_axis)
+                          path_normals, tilt_from_axis)
 from .remaining import r_eff_material_mm
 from .tools import center_offset_mm, r_eff_mm
+
+
+# With a tilted tool the contact moves along the ball within a block as the axis turns,
+# and a ramp onto or off the surface touches along a few tenths of a mm only: 5-axis
+# toolpaths are sampled at least this finely with a mesh (the D10 dome of
+# bench/make_5axis.py: 1 mm left vc +1.1 % and a lead-out at fz -57 %; 0.25 mm: +0.4 %).
+AXIS_SAMPLE_MM = 0.25
+# Without a mesh, where a run of 5-axis cuts begins or ends the tool enters or leaves
+# the part along a ramp; within the contact tolerance up the ramp the contact has
+# turned (2 mm ramps rising 0.3 mm on the dome and bowl of bench/make_5axis.py: ~0.35
+# deg, vc +1.8 %), which the path alone cannot show: those points are planned this
+# much steeper (0.5: vc +0.4/+0.6 %, 1.9/1.8 % above the optimum; 1.0: +0.2 %, 2.3/2.6 %).
+RUN_END_TILT_DEG = 0.5
 
 
 @dataclass(frozen=True)
@@ -125,6 +138,8 @@ def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index:
                  sample_mm: float, tol_mm: float, method: Method = Method()) -> Sampled:
     """Contacts of ``cutter`` along the toolpath, from the mesh if there is one."""
     if mesh_index is not None:
+        if tp.tool_axis is not None:
+            sample_mm = min(sample_mm, AXIS_SAMPLE_MM)
         xyz, point = sample_points(tp, sample_mm)
         axis = sample_axes(tp, sample_mm)
         sampled = Sampled(contacts_from_mesh(xyz + centre_offsets(tp, cutter, axis), mesh_index,
@@ -153,26 +168,52 @@ def _path_contacts_5axis(tp: Toolpath, cutter: Cutter, cutting: np.ndarray):
     same = np.concatenate(([False], tp.line[1:] == tp.line[:-1]))
     piece = np.concatenate((same[1:], [False])) & (tp.motion == Motion.LINEAR)
     ends = np.flatnonzero(~piece)
-    step = np.linalg.norm(np.diff(centres[ends], axis=0), axis=1)
+    est, run_end = _end_normals(centres[ends], cutting[ends], tp.tool_axis[ends])
+    if ends.size < tp.n:
+        est = _blend_pieces(est, ends, piece)
+    at_end = np.zeros(tp.n, dtype=bool)
+    at_end[ends[run_end]] = True
+    return _recomputed(est, cutter, centres, tp.tool_axis, cutting, at_end), est
+
+
+def _end_normals(centres: np.ndarray, cutting: np.ndarray, axis: np.ndarray):
+    """Path normals at block ends, and (m,) bool: the first and last point of each run
+    of cuts.  The last point is where the tool leaves the part (a lead-out ends above
+    it): no neighbour of the others, it takes the normal before it."""
+    step = np.linalg.norm(np.diff(centres, axis=0), axis=1)
     path = np.concatenate(([0.0], np.cumsum(step)))
-    c, est = contacts_from_path(centres[ends], path, cutting[ends], cutter, tp.tool_axis[ends])
-    if ends.size == tp.n:
-        return c, est
-    # each piece lies between the end before it and its block's end point
-    nxt = ends[np.searchsorted(ends, np.arange(tp.n))]
-    prv = ends[np.maximum(np.searchsorted(ends, np.arange(tp.n)) - 1, 0)]
-    at = np.searchsorted(ends, np.arange(tp.n))
-    span = np.maximum(nxt - prv, 1)
-    frac = np.where(piece, (np.arange(tp.n) - prv) / span, 1.0)
-    a, b = np.maximum(at - 1, 0), at
+    before = np.concatenate(([False], cutting[:-1]))
+    last = cutting & ~np.concatenate((cutting[1:], [False]))
+    est = path_normals(centres, path, cutting & ~(last & before), axis=axis)
+    inner = np.flatnonzero(last & before)
+    est.normal[inner] = est.normal[inner - 1]
+    return est, last | (cutting & ~before)
+
+
+def _blend_pieces(est: PathNormals, ends: np.ndarray, piece: np.ndarray) -> PathNormals:
+    """Normals at every point: each piece blended between the end before it and its
+    block's end point (confidence: the lower of the two)."""
+    n = piece.shape[0]
+    at = np.searchsorted(ends, np.arange(n))
+    nxt, prv = ends[np.minimum(at, ends.size - 1)], ends[np.maximum(at - 1, 0)]
+    frac = np.where(piece, (np.arange(n) - prv) / np.maximum(nxt - prv, 1), 1.0)
+    a, b = np.maximum(at - 1, 0), np.minimum(at, ends.size - 1)
     normal = blend(est.normal[a], est.normal[b], frac)
     conf = np.minimum(est.confidence[a], est.confidence[b])
-    normal[~piece], conf[~piece] = est.normal[at[~piece]], est.confidence[at[~piece]]
-    tilt = np.where(conf == ONE_SIDED, np.radians(ONE_SIDED_TILT_DEG), 0.0)
-    r_eff = r_eff_mm(cutter, tilt_from_axis(normal, tilt, tp.tool_axis), tp.tool_axis)
-    contacts = Contacts(cc_mm=centres - cutter.corner_radius_mm * normal, normal=normal,
-                        r_eff_mm=r_eff, cutting=cutting.copy())
-    return contacts, PathNormals(normal, conf, est.stepover_mm)
+    normal[~piece], conf[~piece] = est.normal[b[~piece]], est.confidence[b[~piece]]
+    return PathNormals(normal, conf, est.stepover_mm)
+
+
+def _recomputed(est: PathNormals, cutter: Cutter, centres, axis, cutting,
+                run_end=None) -> Contacts:
+    """Contacts from path normals (one-sided ones planned steeper, as contacts_from_path;
+    the ends of runs of cuts by RUN_END_TILT_DEG)."""
+    tilt = np.where(est.confidence == ONE_SIDED, np.radians(ONE_SIDED_TILT_DEG), 0.0)
+    if run_end is not None:
+        tilt = np.maximum(tilt, np.where(run_end, np.radians(RUN_END_TILT_DEG), 0.0))
+    r_eff = r_eff_mm(cutter, tilt_from_axis(est.normal, tilt, axis), axis)
+    return Contacts(cc_mm=centres - cutter.corner_radius_mm * est.normal, normal=est.normal,
+                    r_eff_mm=r_eff, cutting=cutting.copy())
 
 
 def _with_material(tp: Toolpath, cutter: Cutter, sampled: Sampled, method: Method) -> Contacts:
