@@ -224,12 +224,12 @@ def _from_angles(angle, lost, rotary, kinematics, tcp_on, tcp_explicit, why, r):
     if kin is None:
         fits = [k.name for k in KINEMATICS.values() if set(rotary) <= set(k.axes)]
         choice = (", ".join(fits[:-1]) + " or " + fits[-1]) if len(fits) > 1 else \
-            (fits[0] if fits else "NAME")
+            (fits[0] if fits else "")
+        todo = f"pass --kinematics {choice} as the machine is built" if fits else \
+            f"ncopt knows no kinematics that turns {' and '.join(rotary)}"
         what = ("--kinematics vector reads tool vectors, and these blocks turn the rotary "
-                f"axes ({names}); pass the machine's kinematics: --kinematics {choice}"
-                if kinematics == VECTOR else
-                f"the rotary axes ({names}) tilt the tool and no kinematics is given; pass "
-                f"--kinematics {choice} as the machine is built")
+                f"axes ({names}); {todo}" if kinematics == VECTOR else
+                f"the rotary axes ({names}) tilt the tool and no kinematics is given; {todo}")
         why[tilted] = r.code(what)
     else:
         foreign = [c for c in rotary if c not in kin.axes]
@@ -251,24 +251,31 @@ def _from_angles(angle, lost, rotary, kinematics, tcp_on, tcp_explicit, why, r):
 
 def _tcp(prog, lines, executed, keywords):
     """TCP on after each line, whether the program ever switches it, and the lines
-    that switch it on."""
-    state = np.full(lines.n, np.nan)
+    that switch it on.  Each switch ends only with its own off code: G43.4/G43.5
+    (and Haas G234) with the rest of their modal group (G43, G44, G49), M128 with
+    M129, M428 with M429, TRAORI with TRAFOOF, FUNCTION TCPM with its RESET."""
     length = lines.g_group(G_LENGTH_GROUP)
-    on = (np.isin(length, list(G_TCP_ON)) | lines.has_m(M_TCP_ON)) & executed
-    off = ((np.isfinite(length) & ~np.isin(length, list(G_TCP_ON))) | lines.has_m(M_TCP_OFF)
-           | lines.has_m({2, 30})) & executed
+    g_on = np.isin(length, list(G_TCP_ON)) & executed
+    g_off = np.isfinite(length) & ~g_on & executed
+    m_on = (lines.has_m(M_TCP_ON)) & executed
+    m_off = lines.has_m(M_TCP_OFF) & executed
     for i, head in keywords.items():
         text = prog.line_text(i).upper()
         if head == "TRAORI" or (head == "FUNCTION" and "TCPM" in text and "RESET" not in text):
-            on[i] = True
+            m_on[i] = True
         elif head == "TRAFOOF" or (head == "FUNCTION" and "TCPM" in text):
-            off[i] = True
-    explicit = bool(on.any())
-    if not explicit:  # never switched: the kinematics given run the program (LinuxCNC's do)
+            m_off[i] = True
+    on = g_on | m_on
+    if not on.any():  # never switched: the kinematics given run the program (LinuxCNC's do)
         return np.ones(lines.n, dtype=bool), False, on
-    state[off] = 0.0
-    state[on] = 1.0
-    return _ffill(state, 0.0) > 0, True, on
+    end = lines.has_m({2, 30}) & executed
+    state = np.zeros(lines.n, dtype=bool)
+    for sw_on, sw_off in ((g_on, g_off), (m_on, m_off)):
+        st = np.full(lines.n, np.nan)
+        st[sw_off | end] = 0.0
+        st[sw_on] = 1.0
+        state |= _ffill(st, 0.0) > 0
+    return state, True, on
 
 
 def _rotary_positions(prog, lines, modal, executed, r):

@@ -285,3 +285,13 @@ def test_g68_2_without_g53_1_is_not_planned():
     tp = run(HEAD + "G68.2 X0 Y0 Z0 I0 J30 K0\nG0 X0 Y0 Z10\nG1 Z0\nG1 X10\n")
     assert not planned_lines(tp)[7]
     assert "G68.2 without G53.1" in warning_for(tp, 8)
+
+
+def test_a_tool_length_offset_does_not_end_linuxcnc_tcp():
+    """M428 (a kinematics switch) is not ended by G43 H1 (a tool length offset), as in
+    LinuxCNC's boat demo; G43 does end Fanuc's G43.4 (the same modal group)."""
+    tp = run(HEAD + "M428\nG43 H1\nG1 X10 A20 C30\nG1 X20\n", kinematics="xyzac-trt")
+    p = planned_lines(tp)
+    assert p[6] and p[7]
+    tp = run(HEAD + "G43.4 H1\nG43 H1\nG1 X10 A20 C30\nG1 X20\n", kinematics="xyzac-trt")
+    assert not planned_lines(tp)[7]
