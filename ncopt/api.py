@@ -21,6 +21,7 @@ from .contacts import Method, Sampled, contacts_for
 from .controls import control_note
 from .dialect import detect, resolve_decimal_point
 from .errors import NothingToPlan, PlanningError, UsageError, VerificationError
+from .feedmode import inverse_time_words
 from .geometry import MeshIndex, load_stl
 from .interp import interpret
 from .model import Cutter, CuttingData, Machine, Motion, PlanOptions, Program, Toolpath
@@ -195,6 +196,7 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     if inch and f_style.decimals < 2:
         f_style = replace(f_style, decimals=2, trailing_point=False)  # inch/min needs them
     quantum = 10.0 ** -f_style.decimals * (MM_PER_INCH if inch else 1.0)
+    quantum = max(quantum, _inverse_time_quantum(tp, idx, f_style))
     job = replace(job, options=replace(job.options, f_quantum_mm_min=quantum))
     stamps = read_stamps(prog)
     plans, skipped = _plan_tools(prog, tp, idx, job, mesh_index, stamps)
@@ -351,7 +353,10 @@ def _weighted_median(values: np.ndarray, weight: np.ndarray) -> float:
 
 
 def _targets(tp, idx, plans, f_style) -> Targets:
-    """S and F to be in force per block: planned where a tool was planned, else as programmed."""
+    """S and F to be in force per block: planned where a tool was planned, else as programmed.
+
+    A G93 block's F is 1 / minutes: the planned tip feed over its length
+    (``ncopt.feedmode``).  A rotary-only block (no length) keeps its F."""
     fp = idx.first_point
     inch = tp.line_inch[idx.line] if tp.line_inch is not None else np.zeros(fp.shape, bool)
     unit = np.where(inch, MM_PER_INCH, 1.0)
@@ -360,12 +365,35 @@ def _targets(tp, idx, plans, f_style) -> Targets:
     f_value = np.where(feed_move, tp.feed_mm_min[fp] / unit, np.nan)
     s_value[~(s_value > 0)] = np.nan  # no S in force: nothing to restore (never write S0)
     scale = 10.0 ** f_style.decimals
+    g93, length = _inverse_time_blocks(tp, idx)
+    if g93 is not None:
+        f_value = np.where(g93, inverse_time_words(tp.feed_mm_min[fp], length), f_value)
     for p in plans:
         s_value = np.where(p.blocks.planned, p.s_cmd_rpm, s_value)
-        planned_f = np.floor(p.f_mm_min / unit * scale + 1e-9) / scale  # never above fz
-        f_value = np.where(p.blocks.cutting, planned_f, f_value)
+        word = p.f_mm_min / unit
+        if g93 is not None:
+            word = np.where(g93, inverse_time_words(p.f_mm_min, length), word)
+        planned_f = np.floor(word * scale + 1e-9) / scale  # never above fz
+        f_value = np.where(p.blocks.cutting & (p.blocks.length_mm > 0), planned_f, f_value)
     f_value[~(f_value > 0)] = np.nan  # never F0 or below (controls reject it)
     return Targets(line=idx.line, s_value=s_value, f_value=f_value)
+
+
+def _inverse_time_blocks(tp, idx):
+    """(nb,) bool: the block is in G93, and (nb,) its length in mm; (None, None) if none is."""
+    if tp.inverse_time is None:
+        return None, None
+    fp = idx.first_point
+    return tp.inverse_time[fp], np.add.reduceat(tp.seg_len_mm[1:], fp - 1)
+
+
+def _inverse_time_quantum(tp, idx, f_style) -> float:
+    """The feed resolution (mm/min) of the G93 words: the word's own resolution times the
+    longest G93 feed block (0 when there is none)."""
+    g93, length = _inverse_time_blocks(tp, idx)
+    if g93 is None or not np.any(g93 & tp.known[idx.first_point]):
+        return 0.0
+    return 10.0 ** -f_style.decimals * float(np.max(length[g93 & tp.known[idx.first_point]]))
 
 
 def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_style,

@@ -21,6 +21,7 @@ import numpy as np
 
 from .errors import NcoptError
 from .expr import Params, Unknown
+from .feedmode import G93, G95, tip_feed_mm_min
 from .model import LineKind, Program, Toolpath
 from .orientation import Orientation, read_orientation, with_tool_axis
 
@@ -452,7 +453,6 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
     end_known = all_known[move_lines]
     scale = np.where(modal.inch, MM_PER_INCH, 1.0)
     feed_mm = modal.feed * scale
-    inverse_or_rev = modal.feed_mode != 940
     comp = modal.comp != 400
     arcs = np.flatnonzero(is_arc[move_lines])
     pieces = [None] * move_lines.shape[0]
@@ -483,21 +483,27 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
     rep = lambda a, first: np.concatenate(([first], np.repeat(a, counts)))  # noqa: E731
     line = rep(move_lines, -1).astype(np.int32)
     mcode = rep(np.nan_to_num(motion[move_lines], nan=-10) // 10, -1).astype(np.int8)
-    seg_known = end_known & prev_known
-    seg_known &= ~inverse_or_rev[move_lines] & ~comp[move_lines]
+    block_len = np.add.reduceat(lengths[1:], rows[:-1]) if move_lines.size else seg_len
+    feed_mm, g93_ok = tip_feed_mm_min(modal.feed_mode[move_lines], lines.value("F")[move_lines],
+                                      feed_mm[move_lines], block_len)
+    seg_known = end_known & prev_known & g93_ok
+    seg_known &= (modal.feed_mode[move_lines] != G95) & ~comp[move_lines]
     if orient is not None:
         seg_known &= orient.blocked[move_lines] == 0
     known_pts = rep(seg_known, False)
     feed_moves = np.isin(motion[move_lines], [10, 20, 30])
-    _warn_unplanned(prog, move_lines[feed_moves], seg_known[feed_moves], modal, warnings, orient)
+    no_f = np.zeros(lines.n, dtype=bool)
+    no_f[move_lines[~g93_ok]] = True
+    _warn_unplanned(prog, move_lines[feed_moves], seg_known[feed_moves], modal, warnings, orient,
+                    no_f)
     return Toolpath(
         xyz_mm=xyz, line=line, motion=mcode,
-        feed_mm_min=rep(np.where(mcode_is_feed(motion[move_lines]), feed_mm[move_lines],
-                                 np.nan), np.nan),
+        feed_mm_min=rep(np.where(mcode_is_feed(motion[move_lines]), feed_mm, np.nan), np.nan),
         spindle_rpm=rep(modal.spindle_rpm[move_lines], 0.0),
         seg_len_mm=lengths, known=known_pts, tool=rep(modal.tool[move_lines], -1).astype(np.int32),
         line_inch=modal.inch, spindle_on=rep(modal.spindle_on[move_lines], False),
-        warnings=tuple(warnings))
+        warnings=tuple(warnings), inverse_time=rep(modal.feed_mode[move_lines] == G93, False)
+        if np.any(modal.feed_mode[move_lines] == G93) else None)
 
 
 def mcode_is_feed(motion_x10: np.ndarray) -> np.ndarray:
@@ -512,7 +518,8 @@ def _check_feed(prog, modal, move_lines) -> None:
         _fail(prog, bad[0], "feed move with zero feed rate; add an F word before it")
 
 
-def _warn_unplanned(prog, move_lines, seg_known, modal, warnings, orient=None) -> None:
+def _warn_unplanned(prog, move_lines, seg_known, modal, warnings, orient=None,
+                    no_f=None) -> None:
     unknown = move_lines[~seg_known]
     if unknown.size == 0:
         return
@@ -523,8 +530,10 @@ def _warn_unplanned(prog, move_lines, seg_known, modal, warnings, orient=None) -
         why = "position not known"
         if orient is not None and orient.blocked[a]:
             why = orient.reasons[orient.blocked[a]]
-        elif modal.feed_mode[a] != 940:
-            why = "inverse-time or per-revolution feed (G93/G95)"
+        elif modal.feed_mode[a] == G95:
+            why = "per-revolution feed (G95)"
+        elif no_f is not None and no_f[a]:
+            why = "an inverse-time (G93) block without its own F word"
         elif modal.comp[a] != 400:
             why = "cutter radius compensation (G41/G42) active"
         warnings.append(f"{prog.path}:{a + 1}-{b + 1}: not planned ({why}); S/F left as programmed")

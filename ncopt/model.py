@@ -161,6 +161,10 @@ class Toolpath:
     kinematics : str or None
         What gave the tool axes: a name of ``ncopt.kinematics.KINEMATICS``,
         ``"vector"`` (tool vectors in the program), or None (the tool never tilts).
+    inverse_time : (n,) bool or None
+        The move is in G93: its ``feed_mm_min`` is the tip feed its F word (1 /
+        minutes) stands for, F x the block's length (``ncopt.feedmode``).  None:
+        no G93 move.
     """
 
     xyz_mm: np.ndarray
@@ -176,6 +180,7 @@ class Toolpath:
     warnings: tuple = ()
     tool_axis: np.ndarray | None = None
     kinematics: str | None = None
+    inverse_time: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = self.xyz_mm.shape[0]

@@ -475,4 +475,5 @@ def with_tool_axis(tp, o: Orientation):
                    seg_len_mm=tp.seg_len_mm[rows] / counts[rows], known=tp.known[rows],
                    tool=tp.tool[rows],
                    spindle_on=None if tp.spindle_on is None else tp.spindle_on[rows],
+                   inverse_time=None if tp.inverse_time is None else tp.inverse_time[rows],
                    tool_axis=None if vertical else axis, kinematics=o.kinematics)
