@@ -18,8 +18,12 @@ Machine model
 * When the spindle starts (M3/M4 after a stop) the control waits for speed:
   the real speed is the commanded one at once.  The wait is not timed.
 * Moves the interpreter cannot place (the first move, moves after G28 or a
-  subprogram call, G93/G95 feed modes, cutter compensation) take no time and
-  are not evaluated; a warning counts them.
+  subprogram call, G95 feed mode, cutter compensation, a tool axis it cannot
+  read) take no time and are not evaluated; a warning counts them.  A G93
+  block lasts 1 / F minutes.
+* The tool axis comes from the program text (``--kinematics`` for rotary
+  angles), so a 5-axis program, or a 3-axis rewrite of one, is judged with
+  its real R_eff.
 
 Samples
 -------
@@ -51,6 +55,7 @@ from .contacts import centre_offsets, path_contacts_at_samples, sample_axes, sam
 from .errors import UsageError
 from .geometry import MeshIndex, contacts_from_mesh, load_stl
 from .interp import MM_PER_INCH, ffill, interpret
+from .kinematics import tilt_deg
 from .model import Contacts, Cutter, CuttingData, Machine, Motion, Program, Toolpath
 from .tooltable import BALL, BULL, cutter_for, tool_table
 
@@ -171,6 +176,7 @@ class SimSeries:
     d_eff_mm : effective cutting diameter ``2 R_eff`` (NaN where not evaluated)
     vc_m_min : ``pi d_eff S / 1000``
     cutting : the cutter touches the part on a feed move
+    tool_axis : (m, 3) unit tool axis from the program text (5 axes), None: +Z
     """
 
     dist_mm: np.ndarray
@@ -184,12 +190,13 @@ class SimSeries:
     d_eff_mm: np.ndarray
     vc_m_min: np.ndarray
     cutting: np.ndarray
+    tool_axis: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.dist_mm.shape[0])
 
     def write_csv(self, path: str | Path) -> None:
-        """Write the series as CSV with a header row."""
+        """Write the series as CSV with a header row (5 axes: and the tool's tilt from +Z)."""
         cols = np.column_stack((self.dist_mm, self.time_s, self.line, self.xyz_mm, self.s_rpm,
                                 self.s_cmd_rpm, self.f_mm_min, self.fz_mm, self.d_eff_mm,
                                 self.vc_m_min, self.cutting))
@@ -197,6 +204,9 @@ class SimSeries:
                   "d_eff_mm,vc_m_min,cutting")
         fmt = ["%.4f", "%.5f", "%d", "%.4f", "%.4f", "%.4f", "%.2f", "%.2f", "%.3f", "%.6f",
                "%.4f", "%.3f", "%d"]
+        if self.tool_axis is not None:
+            cols = np.column_stack((cols, tilt_deg(self.tool_axis)))
+            header, fmt = header + ",tilt_deg", fmt + ["%.3f"]
         np.savetxt(path, cols, fmt=fmt, delimiter=",", header=header, comments="")
 
 
@@ -432,10 +442,12 @@ def _sample(tp, moves, runs, job, sample_mm, mesh_index, contacts, path):
     with np.errstate(divide="ignore", invalid="ignore"):
         fz = np.where(moves.feed[mv], f / (job.cutter.teeth * s_real), np.nan)
     d_eff = 2.0 * r_eff
+    axis = sample_axes(tp, sample_mm)
     series = SimSeries(dist_mm=moves.d0_mm[mv] + frac * moves.length_mm[mv], time_s=time_s,
                        line=moves.line[mv], xyz_mm=xyz_u[uidx], s_rpm=s_real, s_cmd_rpm=s_cmd,
                        f_mm_min=f, fz_mm=fz, d_eff_mm=d_eff,
-                       vc_m_min=np.pi * d_eff * s_real / 1000.0, cutting=cand & touch)
+                       vc_m_min=np.pi * d_eff * s_real / 1000.0, cutting=cand & touch,
+                       tool_axis=None if axis is None else axis[uidx])
     return series, weight, mv
 
 
@@ -545,5 +557,6 @@ def _warnings(path: str, tp: Toolpath, moves: _Moves, machine: Machine,
     unknown = np.flatnonzero(~moves.known & (moves.rapid | moves.feed))[1:]
     if unknown.size:
         out.append(f"{path}:{moves.line[unknown[0]]}: {unknown.size} moves from an unknown "
-                   "position or in G93/G95 or G41/G42 mode are not timed nor evaluated")
+                   "position, in G95 or G41/G42 mode or with a tool axis ncopt cannot read are "
+                   "not timed nor evaluated")
     return tuple(out)
