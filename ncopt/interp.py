@@ -483,9 +483,12 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
     rep = lambda a, first: np.concatenate(([first], np.repeat(a, counts)))  # noqa: E731
     line = rep(move_lines, -1).astype(np.int32)
     mcode = rep(np.nan_to_num(motion[move_lines], nan=-10) // 10, -1).astype(np.int8)
-    block_len = np.add.reduceat(lengths[1:], rows[:-1]) if move_lines.size else seg_len
-    feed_mm, g93_ok = tip_feed_mm_min(modal.feed_mode[move_lines], lines.value("F")[move_lines],
-                                      feed_mm[move_lines], block_len)
+    feed_mm, g93 = feed_mm[move_lines], modal.feed_mode[move_lines] == G93
+    g93_ok = np.ones(move_lines.shape[0], dtype=bool)
+    if g93.any():  # the tip feed each F (1 / minutes) stands for, over the whole block
+        block_len = np.add.reduceat(lengths[1:], rows[:-1])
+        feed_mm, g93_ok = tip_feed_mm_min(modal.feed_mode[move_lines],
+                                          lines.value("F")[move_lines], feed_mm, block_len)
     seg_known = end_known & prev_known & g93_ok
     seg_known &= (modal.feed_mode[move_lines] != G95) & ~comp[move_lines]
     if orient is not None:
@@ -502,8 +505,7 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
         spindle_rpm=rep(modal.spindle_rpm[move_lines], 0.0),
         seg_len_mm=lengths, known=known_pts, tool=rep(modal.tool[move_lines], -1).astype(np.int32),
         line_inch=modal.inch, spindle_on=rep(modal.spindle_on[move_lines], False),
-        warnings=tuple(warnings), inverse_time=rep(modal.feed_mode[move_lines] == G93, False)
-        if np.any(modal.feed_mode[move_lines] == G93) else None)
+        warnings=tuple(warnings), inverse_time=rep(g93, False) if g93.any() else None)
 
 
 def mcode_is_feed(motion_x10: np.ndarray) -> np.ndarray:

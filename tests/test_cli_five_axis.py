@@ -62,3 +62,21 @@ def test_a_rotary_program_without_kinematics_plans_nothing_and_says_why(tmp_path
         f"the first moves left alone: {prog}:4-7: not planned (the rotary axes (A, C) tilt "
         "the tool and no kinematics is given; pass --kinematics xyzac-trt, xyzac-head-table "
         "or xyzac-trt-linuxcnc as the machine is built); S/F left as programmed)")
+
+
+def test_the_machine_profile_gives_the_kinematics(tmp_path: Path):
+    prog = tmp_path / "p.nc"
+    prog.write_text(ROTARY)
+    profiles = tmp_path / "p.toml"
+    profiles.write_text('[machines.m]\naccel_rad_s2 = 227\nmax_rpm = 18000\n'
+                        'kinematics = "xyzac-trt"\n')
+    out = tmp_path / "o.nc"
+    result = invoke(["rewrite", prog, "--diameter", "10", "--vc", "150", "--fz", "0.08",
+                     "--machine", "m", "--tools", profiles, "-o", out])
+    assert result.exit_code == Exit.OK, result.stderr
+    assert "ncopt: 7 blocks, 3 cutting blocks planned" in result.stderr
+    assert out.read_text().count("S") > ROTARY.count("S")
+    info = invoke(["inspect", prog, "--kinematics", "xyzac-trt"])
+    assert info.exit_code == Exit.OK
+    assert "5-axis: tool axes from the rotary axes through the xyzac-trt kinematics, tilted " \
+           "15.0..15.0 deg from +Z" in info.stdout
