@@ -16,21 +16,22 @@ from pathlib import Path
 
 import numpy as np
 
-from . import planner
-from .contacts import Method, Sampled, contacts_for
+from . import planner, plans as _plans
+from .contacts import Method
 from .controls import control_note
 from .dialect import detect, resolve_decimal_point
-from .errors import NothingToPlan, PlanningError, UsageError, VerificationError
+from .errors import VerificationError
 from .feedmode import inverse_time_words
 from .geometry import MeshIndex, load_stl
-from .interp import interpret
+from .interp import ffill, interpret
 from .model import Cutter, CuttingData, Machine, Motion, PlanOptions, Program, Toolpath
 from .parse import parse_text
 from .pathnormals import NO_CROSS, ONE_SIDED
-from .stamp import as_stamped, read_stamps, stamp_edit
+from .plans import OpPlan, Work, plan_program
+from .regions import Scope
 from .rewrite import F_CODE, S_CODE, Targets, apply_edits, detect_style, masked, plan_edits
-from .tooltable import BALL, BULL, cutter_for, tool_table
-from .tools import required_rpm
+from .stamp import read_stamps, stamp_edit
+from .times import feed_minutes, untimed_moves
 
 MM_PER_INCH = 25.4
 
@@ -56,26 +57,34 @@ class Job:
     teeth: int = 2
     method: Method = Method()  # contact point (default) or remaining material
     decimal_point: str | None = None  # Fanuc input convention: calculator, is-b, is-c
-    kinematics: str | None = None  # 5-axis: how rotary angles tilt the tool (ncopt.kinematics)
     contact_tol_mm: float = 0.05
     verify: bool = True
     stamp: bool = True
+    operations: tuple | None = None  # --operations: names to plan (or "all"); None: by kind
+    stock_mm: float = 0.0  # --stock: allowance the program leaves on the mesh, mm
+    diameter_bare: bool = False  # --diameter was a bare number (read as mm)
+    shape_named: bool = False  # the user named the cutter's shape (not --diameter alone)
+    kinematics: str | None = None  # 5-axis: how rotary angles tilt the tool (ncopt.kinematics)
+
+
+ToolPlan = OpPlan  # the plan of one operation (one tool in ncopt 0.1)
 
 
 @dataclass(frozen=True)
-class ToolPlan:
-    """One tool section's plan."""
+class OpRow:
+    """One operation in the summary: what it is, whether ncopt planned it and why,
+    and its cutting time before -> after (min) and S range after (RPM)."""
 
+    name: str
     tool: int
-    cutter: Cutter
-    cutting: CuttingData
-    source: str  # where the cutter came from: "options" or the comment's line
-    blocks: planner.Blocks
-    s_cmd_rpm: np.ndarray
-    f_mm_min: np.ndarray
-    sampled: Sampled
-    close_s_words: int = 0
-    over_target: tuple = (0, 0.0)  # (blocks, worst vc excess %) forced by the program's own S
+    lines: str
+    kind: str
+    planned: bool
+    reason: str
+    time_before_min: float
+    time_after_min: float
+    s_min_rpm: float
+    s_max_rpm: float
 
 
 @dataclass(frozen=True)
@@ -106,6 +115,12 @@ class Summary:
     control: str = ""
     control_source: str = ""
     control_notes: tuple = ()
+    operations: tuple = ()  # OpRow per operation, in program order
+    planned_time_before_min: float = 0.0  # the planned operations only
+    planned_time_after_min: float = 0.0
+    untimed_moves: int = 0  # feed moves the cutting time leaves out
+    units: str = "mm"
+    mesh_fit: tuple = ()  # (T, MeshFit) per planned tool, with a mesh
 
     @property
     def time_change_pct(self) -> float:
@@ -123,8 +138,10 @@ class Result:
     program: Program
     toolpath: Toolpath
     block_index: planner.BlockIndex
-    plans: tuple[ToolPlan, ...]
+    plans: tuple[OpPlan, ...]
     targets: Targets
+    operations: tuple = ()
+    scope: Scope | None = None
 
     @property
     def plan(self) -> ToolPlan:
@@ -184,6 +201,7 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
 
     ``mesh_index``: the part's mesh, or a ``concurrent.futures.Future`` of it
     (loading while the program is read); None: normals from the toolpath.
+    Raises NothingToPlan (exit 5) when no operation of the program can be planned.
     """
     found = detect(text)
     prog = read_text(text, path, job, found.name)
@@ -198,183 +216,62 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     quantum = 10.0 ** -f_style.decimals * (MM_PER_INCH if inch else 1.0)
     quantum = max(quantum, _inverse_time_quantum(tp, idx, f_style))
     job = replace(job, options=replace(job.options, f_quantum_mm_min=quantum))
-    stamps = read_stamps(prog)
-    plans, skipped = _plan_tools(prog, tp, idx, job, mesh_index, stamps)
+    work = plan_program(prog, tp, idx, job, mesh_index)
     mesh_edge = float(mesh_index.edge_lengths.median_mm) if mesh_index else None
     del mesh_index  # the largest object of a big job; verification needs memory too
-    targets = _targets(tp, idx, plans, f_style)
-    edits = plan_edits(prog, targets, s_style, f_style)
-    stamp = stamp_edit(prog, plans) if job.stamp else None
+    targets = _targets(prog, tp, idx, work, f_style)
+    consumers = _with_fixed_lines(tp, idx, work.scope, targets)
+    edits = plan_edits(prog, consumers, s_style, f_style, work.scope.editable)
+    stamp = (stamp_edit(prog, work.plans, 100.0 * job.options.fz_tolerance)
+             if job.stamp else None)
     out = apply_edits(text, edits + ([stamp] if stamp else ()))
     counts = (len(edits), edits.s_words, edits.f_words)
     del edits  # ~800k strings at 1M blocks: not kept through the verification's peak
     if job.verify:
-        verify(prog, tp, out, targets, s_style, f_style, job, found.name)
-    summary = _summary(prog, tp, idx, plans, skipped, counts, mesh_edge)
+        verify(prog, tp, out, consumers, s_style, f_style, job, found.name, work.scope)
+    summary = _summary(prog, tp, idx, work, targets, counts, mesh_edge, job)
     control = job.control or found.name
     source = job.control_from if job.control else (
         f"detected from {len(found.marks)} mark{'s' if len(found.marks) > 1 else ''}"
         if found.marks else "no marks: generic")
     summary = replace(summary, control=control, control_source=source,
                       control_notes=(control_note(control, summary.s_words),))
-    return Result(out, summary, prog, tp, idx, tuple(plans), targets)
+    return Result(out, summary, prog, tp, idx, tuple(work.plans), targets, work.ops, work.scope)
 
 
-def _plan_tools(prog, tp, idx, job, mesh_index, stamps):
-    """Plan every ball or bull-nose tool section with its own cutter."""
-    feed = np.isin(tp.motion, [Motion.LINEAR, Motion.ARC_CW, Motion.ARC_CCW])
-    plannable = feed & tp.known & tp.spindle_on
-    tools = np.unique(tp.tool[plannable]).tolist()
-    if job.tool is not None:
-        if job.tool not in tools:
-            raise UsageError(f"no feed moves with tool T{job.tool}; check --tool", prog.path)
-        tools = [job.tool]
-    if job.cutter is not None and len(tools) > 1:
-        listed = ", ".join(f"T{t}" for t in tools)
-        raise UsageError(f"the program cuts with several tools ({listed}); say which one "
-                         "--diameter describes with --tool N", prog.path)
-    table = tool_table(prog) if job.cutter is None else {}
-    plans, skipped = [], []
-    for tool in tools:
-        stamp = stamps.get(tool)
-        cutter, source, why = _cutter(job, table, tool, len(tools), tp.line_inch)
-        if cutter is None and stamp is not None:
-            cutter, source = stamp.cutter, f"the ncopt stamp on line {stamp.line + 1}"
-        if cutter is None:
-            skipped.append((tool, why))
-            continue
-        selected = plannable & (tp.tool == tool)
-        if not cutter.is_ball and _tilted(tp, selected):
-            skipped.append((tool, "a bull-nose with a tilted tool axis: ncopt plans 5-axis "
-                            "moves with ball-end mills only"))
-            continue
-        tool_job = job
-        if job.cutting is None and stamp is not None:  # an optimised program: its nominal data
-            tool_job = replace(job, cutting=stamp.cutting)
-        plans.append(_plan_tool(tp, idx, tool_job, mesh_index, tool, cutter, source, selected,
-                                prog.path))
-    if not plans:
-        why = "; ".join(f"{_tool_name(t)}: {w}" for t, w in skipped) or "no feed moves with a " \
-            "running spindle and a known position" + _first_left_alone(tp)
-        raise NothingToPlan(f"nothing to plan ({why})", prog.path)
-    return plans, skipped
-
-
-def _tilted(tp: Toolpath, selected: np.ndarray) -> bool:
-    """Some selected move's tool axis is not +Z."""
-    return tp.tool_axis is not None and bool(np.any(tp.tool_axis[selected, :2]))
-
-
-def _first_left_alone(tp: Toolpath) -> str:
-    """The first located 'not planned' warning, to say why nothing could be planned."""
-    first = next((w for w in tp.warnings if ": not planned (" in w), None)
-    return f"; the first moves left alone: {first}" if first else ""
-
-
-def _tool_name(tool: int) -> str:
-    return f"T{tool}" if tool >= 0 else "the tool (the program names none)"
-
-
-def _cutter(job, table, tool, n_tools, line_inch):
-    """The cutter of T``tool``: from the options, else the program's tool comment."""
-    if job.cutter is not None:
-        return job.cutter, "options", ""
-    if tool in job.tool_library:
-        return job.tool_library[tool], "the tool profiles", ""
-    info = cutter_for(table, tool, n_tools)
-    if info is None:
-        return None, "", "no diameter known from the program's comments: give --diameter " \
-            "(and --corner-radius for a bull-nose)"
-    if info.kind not in (BALL, BULL):
-        kind = "a flat end mill" if info.kind == "flat" else "not a ball or bull-nose"
-        return None, "", f"{kind} ({info.text.strip()}); ncopt plans ball and bull-nose " \
-            "cutters only"
-    inch = line_inch is not None and bool(np.any(line_inch))
-    scale = MM_PER_INCH if inch else 1.0
-    return info.cutter(job.teeth, scale), f"line {info.line}: ({info.text.strip()})", ""
-
-
-def _plan_tool(tp, idx, job, mesh_index, tool, cutter, source, selected, path) -> ToolPlan:
-    cut = job.cutting or as_stamped(nominal_cutting_data(tp, selected, cutter, path))
-    sampled = contacts_for(tp, cutter, selected, mesh_index, job.options.sample_mm,
-                           job.contact_tol_mm, job.method)
-    c = sampled.contacts
-    req = required_rpm(c.r_eff_mm, cut.vc_m_min)
-    in_section = (tp.tool == tool)
-    blocks = planner.blocks_from_contacts(
-        idx, tp.seg_len_mm, tp.motion, tp.feed_mm_min, tp.known,
-        tp.spindle_on & in_section, tp.spindle_rpm, req, c.cutting, sampled.point, selected,
-        job.machine.rapid_mm_min)
-    try:
-        emitted, f_mm, _ = planner.plan(blocks, job.machine, cut, cutter.teeth, job.options)
-    except PlanningError as exc:
-        if exc.path is None:
-            raise PlanningError(exc.message, path) from None
-        raise
-    return ToolPlan(tool, cutter, cut, source, blocks, emitted.s_cmd_rpm, f_mm, sampled,
-                    emitted.close_s_words, _over_target(blocks, emitted, job, cut, cutter))
-
-
-def _over_target(blocks, emitted, job, cut, cutter) -> tuple:
-    """Cutting blocks where the real spindle stays above the requirement (after the
-    program's own S in a block ncopt could not plan): (count, worst vc excess %)."""
-    s_lo, s_hi = planner.speed_limits(job.machine, cut, cutter.teeth)
-    req = np.clip(blocks.req_rpm, s_lo, s_hi)
-    c = blocks.cutting & blocks.planned
-    excess = emitted.s_high_rpm[c] / req[c] - 1.0
-    bad = excess > 1e-3
-    return (int(bad.sum()), float(100.0 * excess[bad].max()) if bad.any() else 0.0)
-
-
-def nominal_cutting_data(tp: Toolpath, selected: np.ndarray, cutter: Cutter,
-                         path: str) -> CuttingData:
-    """vc and fz the program itself runs at its nominal diameter (what the CAM intended).
-
-    S and F are the length-weighted medians over the feed moves ncopt plans, so a
-    plunge or lead-in feed does not set the target of the whole finish.
-    """
-    idx = np.flatnonzero(selected & (tp.spindle_rpm > 0) & (tp.feed_mm_min > 0))
-    if idx.size == 0:
-        raise PlanningError("the program gives no spindle speed or feed for its cuts; "
-                            "give --vc and --fz", path)
-    weight = tp.seg_len_mm[idx]
-    s = _weighted_median(tp.spindle_rpm[idx], weight)
-    f = _weighted_median(tp.feed_mm_min[idx], weight)
-    vc = np.pi * cutter.diameter_mm * s / 1000.0
-    return CuttingData(vc_m_min=vc, fz_mm=f / (cutter.teeth * s))
-
-
-def _weighted_median(values: np.ndarray, weight: np.ndarray) -> float:
-    order = np.argsort(values, kind="stable")
-    cum = np.cumsum(weight[order])
-    if cum[-1] <= 0:
-        return float(values[order][len(values) // 2])
-    return float(values[order][np.searchsorted(cum, 0.5 * cum[-1])])
-
-
-def _targets(tp, idx, plans, f_style) -> Targets:
-    """S and F to be in force per block: planned where a tool was planned, else as programmed.
+def _targets(prog: Program, tp: Toolpath, idx: planner.BlockIndex, work: "Work",
+             f_style) -> Targets:
+    """S and F to be in force per block: planned where an operation's plan owns the
+    block, else the program's own; and the program's own at every fixed line that does
+    not move (a canned cycle, a call), so that it is in force there too.
 
     A G93 block's F is 1 / minutes: the planned tip feed over its length
     (``ncopt.feedmode``).  A rotary-only block (no length) keeps its F."""
     fp = idx.first_point
+    ls = tp.lines
     inch = tp.line_inch[idx.line] if tp.line_inch is not None else np.zeros(fp.shape, bool)
     unit = np.where(inch, MM_PER_INCH, 1.0)
     feed_move = tp.motion[fp] != Motion.RAPID
     s_value = tp.spindle_rpm[fp].astype(np.float64)
     f_value = np.where(feed_move, tp.feed_mm_min[fp] / unit, np.nan)
-    s_value[~(s_value > 0)] = np.nan  # no S in force: nothing to restore (never write S0)
+    s_value[~(s_value > 0) | ~ls.s_known[idx.line]] = np.nan  # never write S0
+    f_value[~ls.f_known[idx.line]] = np.nan
     scale = 10.0 ** f_style.decimals
     g93, length = _inverse_time_blocks(tp, idx)
     if g93 is not None:
-        f_value = np.where(g93, inverse_time_words(tp.feed_mm_min[fp], length), f_value)
-    for p in plans:
-        s_value = np.where(p.blocks.planned, p.s_cmd_rpm, s_value)
-        word = p.f_mm_min / unit
+        f_value = np.where(g93 & ls.f_known[idx.line],
+                           inverse_time_words(tp.feed_mm_min[fp], length), f_value)
+    for p in work.plans:
+        lo, hi = p.window
+        planned = p.blocks.planned
+        s_value[lo:hi] = np.where(planned, p.s_cmd_rpm, s_value[lo:hi])
+        word = p.f_mm_min / unit[lo:hi]
         if g93 is not None:
-            word = np.where(g93, inverse_time_words(p.f_mm_min, length), word)
-        planned_f = np.floor(word * scale + 1e-9) / scale  # never above fz
-        f_value = np.where(p.blocks.cutting & (p.blocks.length_mm > 0), planned_f, f_value)
+            word = np.where(g93[lo:hi], inverse_time_words(p.f_mm_min, length[lo:hi]), word)
+        # never above fz; a value a rounding error short of a written one is that one
+        planned_f = np.floor(word * scale + 1e-6) / scale
+        moves = p.blocks.length_mm > 0  # a rotary-only block keeps its F
+        f_value[lo:hi] = np.where(np.isfinite(p.f_mm_min) & moves, planned_f, f_value[lo:hi])
     f_value[~(f_value > 0)] = np.nan  # never F0 or below (controls reject it)
     return Targets(line=idx.line, s_value=s_value, f_value=f_value)
 
@@ -396,15 +293,37 @@ def _inverse_time_quantum(tp, idx, f_style) -> float:
     return 10.0 ** -f_style.decimals * float(np.max(length[g93 & tp.known[idx.first_point]]))
 
 
+def _with_fixed_lines(tp: Toolpath, idx: planner.BlockIndex, scope: Scope,
+                      targets: Targets) -> Targets:
+    """The block targets and the fixed lines that do not move (canned cycles, calls):
+    consumers of the program's own S and F, which must be in force there too."""
+    ls = tp.lines
+    extra = np.flatnonzero(scope.fixed)
+    extra = extra[~np.isin(extra, idx.line)]
+    if extra.size == 0:
+        return targets
+    # a call uses what is in force when it starts: known unless lost before its line
+    prev = np.maximum(extra - 1, 0)
+    s_known = np.where(ls.call[extra], ls.s_known[prev] | (extra == 0), ls.s_known[extra])
+    f_known = np.where(ls.call[extra], ls.f_known[prev] | (extra == 0), ls.f_known[extra])
+    s_x = np.where(s_known & (ls.s_rpm[extra] > 0), ls.s_rpm[extra], np.nan)
+    f_x = np.where(f_known & (ls.f_prog[extra] > 0), ls.f_prog[extra], np.nan)
+    line = np.concatenate((targets.line, extra))
+    order = np.argsort(line, kind="stable")
+    return Targets(line[order], np.concatenate((targets.s_value, s_x))[order],
+                   np.concatenate((targets.f_value, f_x))[order])
+
+
 def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_style,
-           job: Job, detected: str | None = None) -> None:
+           job: Job, detected: str | None = None, scope: Scope | None = None) -> None:
     """The checks run after every rewrite; raises VerificationError, writes nothing.
 
-    One parse of the output (read as the input was) serves all three: the stamp
+    One parse of the output (read as the input was) serves them all: the stamp
     lines are whole comment lines at the top, so masking keeps the line structure
     and every target line moves by the same count.  With S and F masked the output
     equals the input, so every geometry word is the input's own: the toolpath
-    cannot have changed.
+    cannot have changed.  Every line ncopt may not edit is byte for byte the input's,
+    and the S and F in force at every fixed line are the program's own.
     """
     out_prog = read_text(out, prog.path, job, detected)
     in_stamps = sorted(st.line for st in read_stamps(prog).values())
@@ -413,12 +332,70 @@ def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_s
     if not same:
         raise VerificationError("the rewrite changed more than S and F words; nothing written",
                                 prog.path)
-    shifted = replace(targets, line=targets.line + (len(out_stamps) - len(in_stamps)))
-    again = plan_edits(out_prog, shifted, s_style, f_style)
+    shift = len(out_stamps) - len(in_stamps)
+    if scope is not None:
+        _check_untouched(prog, out_prog, in_stamps, out_stamps, scope, tp)
+    shifted = replace(targets, line=targets.line + shift)
+    editable = None
+    if scope is not None:
+        editable = _shift_lines(scope.editable, out_prog.n_lines, in_stamps, out_stamps)
+    again = plan_edits(out_prog, shifted, s_style, f_style, editable)
     if again:
         line = int(np.searchsorted(out_prog.line_start, again[0].start, side="right"))
         raise VerificationError("rewriting the result again would change it; nothing written",
                                 prog.path, line)
+
+
+def _kept_lines(prog: Program, drop: list) -> np.ndarray:
+    """0-based lines of ``prog`` without the (stamp) lines ``drop``."""
+    keep = np.ones(prog.n_lines, dtype=bool)
+    keep[drop] = False
+    return np.flatnonzero(keep)
+
+
+def _shift_lines(mask: np.ndarray, n_out: int, in_stamps: list, out_stamps: list) -> np.ndarray:
+    """A per-line mask of the input carried to the output's lines (stamps: False)."""
+    src = np.ones(mask.shape[0], dtype=bool)
+    src[in_stamps] = False
+    dst = np.ones(n_out, dtype=bool)
+    dst[out_stamps] = False
+    out = np.zeros(n_out, dtype=bool)
+    out[np.flatnonzero(dst)] = mask[np.flatnonzero(src)]
+    return out
+
+
+def _check_untouched(prog, out_prog, in_stamps, out_stamps, scope, tp) -> None:
+    """Lines outside the scope are byte-identical; S and F in force at every fixed line
+    are the program's own."""
+    a, b = _kept_lines(prog, in_stamps), _kept_lines(out_prog, out_stamps)
+    if a.size != b.size:
+        raise VerificationError("the rewrite changed the program's lines; nothing written",
+                                prog.path)
+    fixed_only = ~scope.editable[a]
+    for i, j in zip(a[fixed_only].tolist(), b[fixed_only].tolist()):
+        if prog.text[prog.line_start[i]:prog.line_start[i + 1]] != \
+                out_prog.text[out_prog.line_start[j]:out_prog.line_start[j + 1]]:
+            raise VerificationError("a line ncopt leaves alone changed; nothing written",
+                                    prog.path, i + 1)
+    ls = tp.lines
+    for code in (S_CODE, F_CODE):
+        before = _in_force(prog, code, ls.executed)[a]
+        after = _in_force(out_prog, code, _shift_lines(ls.executed, out_prog.n_lines,
+                                                       in_stamps, out_stamps))[b]
+        check = scope.fixed[a]
+        bad = np.flatnonzero(check & ~((before == after) | (np.isnan(before) & np.isnan(after))))
+        if bad.size:
+            raise VerificationError(
+                f"the program's own {chr(code)} is not in force at a line ncopt leaves alone; "
+                "nothing written", prog.path, int(a[bad[0]]) + 1)
+
+
+def _in_force(prog: Program, code: int, executed: np.ndarray) -> np.ndarray:
+    """(n_lines,) value of the last ``code`` word at or before each line (executed lines)."""
+    sel = (prog.word_letter == code) & executed[prog.word_line]
+    per_line = np.full(prog.n_lines, np.nan)
+    per_line[prog.word_line[sel]] = np.nan_to_num(prog.word_value[sel], nan=-1.0)
+    return ffill(per_line)
 
 
 def _masked_without(prog: Program, drop: list) -> str:
@@ -435,41 +412,122 @@ def _masked_without(prog: Program, drop: list) -> str:
     return "".join(line + "\n" for i, line in enumerate(head) if i not in drop) + rest
 
 
-def _summary(prog, tp, idx, plans, skipped, counts, mesh_edge) -> Summary:
-    """``counts``: (edits, S words, F words) written."""
-    fp = idx.first_point
-    f_orig = tp.feed_mm_min[fp]
-    before = after = 0.0
-    cutting_blocks = planned_blocks = 0
-    for p in plans:
-        c = p.blocks.cutting
-        before += float(np.sum(p.blocks.length_mm[c] / f_orig[c]))
-        after += float(np.sum(p.blocks.length_mm[c] / np.maximum(p.f_mm_min[c], 1e-9)))
-        cutting_blocks += int(c.sum())
-        planned_blocks += int(p.blocks.planned.sum())
+def _summary(prog, tp, idx, work: Work, targets: Targets, counts, mesh_edge, job) -> Summary:
+    """``counts``: (edits, S words, F words) written.  Times: :mod:`ncopt.times`."""
+    f_after = _feed_after(tp, idx, targets)
+    cap = job.machine.max_feed_mm_min
+    t_before = feed_minutes(tp, None, cap)
+    t_after = feed_minutes(tp, f_after, cap)
+    rows = tuple(_op_row(o, k, tp, work, t_before, t_after) for k, o in enumerate(work.ops))
+    plans = work.plans
     n_edits, s_words, f_words = counts
     first = plans[0]
+    tools, seen = [], set()
+    for p in plans:
+        if p.tool not in seen:
+            seen.add(p.tool)
+            tools.append((p.tool, _describe(p.cutter), work.tools[p.tool].source))
+    skipped = tuple((t, c.why) for t, c in work.tools.items() if c.cutter is None)
+    planned_pts = work.point_op >= 0
     summary = Summary(
-        blocks=prog.n_lines, moving_blocks=int(fp.shape[0]), cutting_blocks=cutting_blocks,
-        planned_blocks=planned_blocks, s_words=s_words, f_words=f_words, edits=n_edits,
-        cut_time_before_min=before, cut_time_after_min=after, vc_m_min=first.cutting.vc_m_min,
-        fz_mm=first.cutting.fz_mm, max_s_rpm=max(float(np.max(p.s_cmd_rpm[p.blocks.planned], initial=0.0)) for p in plans),
-        tools=tuple((p.tool, _describe(p.cutter), p.source) for p in plans),
-        skipped_tools=tuple(skipped),
-        mesh_edge_mm=mesh_edge,
-        warnings=tp.warnings + tuple(
-            f"{prog.path}: T{p.tool}: vc up to {p.over_target[1]:.1f} % above its target on "
-            f"{p.over_target[0]} cutting blocks, where the spindle is still falling from an S "
-            "that ncopt could not plan (a block it left as programmed)"
-            for p in plans if p.over_target[0]),
-        close_s_words=sum(p.close_s_words for p in plans))
-    est = first.sampled.estimate
+        blocks=prog.n_lines, moving_blocks=int(idx.first_point.shape[0]),
+        cutting_blocks=sum(int((p.blocks.cutting & p.blocks.planned).sum()) for p in plans),
+        planned_blocks=sum(int(p.blocks.planned.sum()) for p in plans),
+        s_words=s_words, f_words=f_words, edits=n_edits,
+        cut_time_before_min=float(t_before.sum()), cut_time_after_min=float(t_after.sum()),
+        vc_m_min=first.cutting.vc_m_min, fz_mm=first.cutting.fz_mm,
+        max_s_rpm=max(float(np.max(p.s_cmd_rpm[p.blocks.planned], initial=0.0)) for p in plans),
+        tools=tuple(tools), skipped_tools=skipped, mesh_edge_mm=mesh_edge,
+        warnings=tp.warnings + _plan_warnings(prog, tp, work, job),
+        close_s_words=sum(p.close_s_words for p in plans), operations=rows,
+        planned_time_before_min=float(t_before[planned_pts].sum()),
+        planned_time_after_min=float(t_after[planned_pts].sum()),
+        untimed_moves=untimed_moves(tp),
+        units="inch" if tp.line_inch is not None and tp.line_inch.any() else "mm",
+        mesh_fit=tuple((t, f) for t, f in (work.fits or {}).items() if f is not None))
+    sampled = next(iter(work.views.values())).sampled
+    est = sampled.estimate
     if est is not None:
         summary = replace(summary, normals_from="toolpath", stepover_mm=est.stepover_mm,
                           one_sided_points=int(np.sum(est.confidence == ONE_SIDED)),
                           no_cross_points=int(np.sum((est.confidence == NO_CROSS)
-                                                     & first.sampled.contacts.cutting)))
+                                                     & sampled.contacts.cutting)))
     return summary
+
+
+def _feed_after(tp: Toolpath, idx: planner.BlockIndex, targets: Targets) -> np.ndarray:
+    """(n,) F in force per point after the rewrite, mm/min (from the targets)."""
+    on_block = np.isin(targets.line, idx.line)
+    f_block = targets.f_value[on_block]  # program units, the blocks' order
+    unit = np.where(tp.line_inch[idx.line], MM_PER_INCH, 1.0) if tp.line_inch is not None else 1.0
+    g93, length = _inverse_time_blocks(tp, idx)
+    if g93 is not None:  # a G93 word is 1 / minutes: the tip feed is the word x the length
+        unit = np.where(g93, length, unit)
+    f_block = f_block * unit
+    out = tp.feed_mm_min.copy()
+    counts = np.diff(np.concatenate((idx.first_point, [tp.n])))
+    per_point = np.repeat(f_block, counts)
+    ok = np.isfinite(per_point)
+    sl = slice(int(idx.first_point[0]), tp.n) if idx.first_point.size else slice(0, 0)
+    out[sl] = np.where(ok, per_point, out[sl])
+    return out
+
+
+def _op_row(op, k, tp, work, t_before, t_after) -> OpRow:
+    a, b = np.searchsorted(tp.line[1:], [op.first_line, op.last_line + 1]) + 1
+    s_lo = s_hi = float("nan")
+    for p in work.plans:
+        if p.op == k:
+            s = p.s_cmd_rpm[p.blocks.planned]
+            if s.size:
+                s_lo, s_hi = float(s.min()), float(s.max())
+    return OpRow(op.name, op.tool, f"{op.first_line + 1}-{op.last_line + 1}", op.kind,
+                 op.planned, op.reason, float(t_before[a:b].sum()), float(t_after[a:b].sum()),
+                 s_lo, s_hi)
+
+
+def _plan_warnings(prog, tp, work, job) -> tuple:
+    out = []
+    inch = tp.line_inch is not None and bool(tp.line_inch.any())
+    if inch and job.cutter is not None and job.diameter_bare and job.cutter.diameter_mm < 2.0:
+        d = job.cutter.diameter_mm
+        out.append(f"{prog.path}: --diameter {d:g} is read as mm (a {d:g} mm cutter) but the "
+                   f"program is in inches: for a {d:g} inch cutter pass --diameter {d:g}in")
+    for p in work.plans:
+        s0 = p.s0_rpm
+        if s0 > job.machine.max_rpm:
+            op = work.ops[p.op]
+            reached = p.cutting.vc_m_min * job.machine.max_rpm / s0
+            out.append(f"{prog.path}: {op.name}: the program's S{s0:.0f} is above the machine's "
+                       f"{job.machine.max_rpm:.0f} RPM: it was written for a faster spindle; "
+                       f"at {job.machine.max_rpm:.0f} RPM vc reaches {reached:.1f} of its "
+                       f"{p.cutting.vc_m_min:.1f} m/min where the cutter cuts at its full diameter")
+    for p in work.plans:
+        if p.over_target[0]:
+            op = work.ops[p.op]
+            out.append(f"{prog.path}: {op.name} (T{p.tool}): vc up to {p.over_target[1]:.1f} % "
+                       f"above its target on {p.over_target[0]} cutting blocks, where the "
+                       "spindle is still falling from an S that ncopt could not plan")
+        if p.coarse_lines is not None and p.coarse_lines.size:
+            op = work.ops[p.op]
+            first = int(p.coarse_lines[0]) + 1
+            out.append(f"{prog.path}:{first}: {op.name}: {p.coarse_lines.size} cutting blocks keep "
+                       "their S and F: their feed is too low for the resolution of the "
+                       "program's F words to hold fz within its band (write F with more "
+                       "decimals to plan them)")
+        if p.reduced.any():
+            op = work.ops[p.op]
+            out.append(f"{prog.path}: {op.name}: {int(p.reduced.sum())} blocks off the cutting "
+                       f"feed {p.cutting_feed_mm_min:g} mm/min or in the air (plunges, ramps, "
+                       "lead-ins, links) keep the program's feed per tooth: F scaled with S")
+    return tuple(out)
+
+
+def nominal_cutting_data(tp: Toolpath, selected: np.ndarray, cutter: Cutter,
+                         path: str) -> CuttingData:
+    """vc and fz the program itself runs at its nominal diameter over the ``selected``
+    points (mask): its S and its cutting feed (see :mod:`ncopt.plans`)."""
+    return _plans.nominal_cutting_data(tp, np.flatnonzero(selected), cutter, path)
 
 
 def _describe(cutter: Cutter) -> str:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import sys
 from dataclasses import replace
 from enum import IntEnum
@@ -15,8 +16,8 @@ from rich.console import Console
 
 from . import __version__
 from .api import Job, Summary, rewrite_file
-from .errors import (MeshError, NcoptError, NcParseError, PlanningError, UsageError,
-                     VerificationError)
+from .errors import (MeshError, NcoptError, NcParseError, NothingToPlan, PlanningError,
+                     UsageError, VerificationError)
 from .contacts import Method
 from .controls import CONTROLS
 from .dialect import DECIMAL_POINT_CONVENTIONS
@@ -48,10 +49,11 @@ err = Console(stderr=True, highlight=False, soft_wrap=True)
 Mesh = Annotated[Optional[Path], typer.Option(
     "--mesh", help="Part mesh (STL, binary or ASCII), mm. Without it, normals come from "
     "the toolpath.")]
-Diameter = Annotated[Optional[float], typer.Option(
-    "--diameter", help="Cutter diameter D, mm (default: from the program's tool comments).")]
-CornerRadius = Annotated[Optional[float], typer.Option(
-    "--corner-radius", help="Bull-nose corner radius r, mm (default: a ball).")]
+Diameter = Annotated[Optional[str], typer.Option(
+    "--diameter", help="Cutter diameter D: mm, or with a unit (6.35mm, 0.25in) (default: "
+    "from the program's tool comments).")]
+CornerRadius = Annotated[Optional[str], typer.Option(
+    "--corner-radius", help="Bull-nose corner radius r: mm, or with a unit (default: a ball).")]
 Teeth = Annotated[int, typer.Option("--teeth", help="Number of teeth z (matters with --fz).")]
 Vc = Annotated[Optional[float], typer.Option(
     "--vc", help="Cutting speed target, m/min (default: the program's S at the nominal D).")]
@@ -92,12 +94,22 @@ DecimalPoint = Annotated[Optional[str], typer.Option(
 MethodName = Annotated[str, typer.Option(
     "--method", help="contact: R_eff at the contact point (default); material: where the "
     "edge meets the remaining material (the paper's second method).")]
-Ap = Annotated[float, typer.Option("--ap", help="Height of the remaining material, mm.")]
+Ap = Annotated[str, typer.Option("--ap", help="Height of the remaining material: mm, or "
+                                  "with a unit (0.008in).")]
 AllowanceAlong = Annotated[str, typer.Option(
     "--allowance-along", help="normal (default) or axis: the remaining material is offset "
     "along the surface normal or the tool axis (finishing layers made by shifting Z).")]
 SInterval = Annotated[float, typer.Option(
     "--min-s-interval-ms", help="Least time between S words, ms (Sinumerik PLC).")]
+Operations = Annotated[Optional[str], typer.Option(
+    "--operations", help="Plan these operations (names as the program's comments give "
+    "them, comma-separated), or all; default: the finishing operations ncopt recognises.")]
+Stock = Annotated[str, typer.Option(
+    "--stock", help="Stock the program leaves on the part (as in the CAM): mm, or with a "
+    "unit; the mesh is the finished part.")]
+Shape = Annotated[Optional[str], typer.Option(
+    "--shape", help="ball or bull-nose: the cutter's shape, where the program's tool "
+    "comment says otherwise (default: --diameter alone never overrides a flat end mill).")]
 KinematicsName = Annotated[Optional[str], typer.Option(
     "--kinematics", help="The machine's 5-axis kinematics, for programs that tilt the tool "
     "with rotary axes A/B/C: xyzac-trt, xyzac-head-table, xyzac-trt-linuxcnc, xyzbc-trt, "
@@ -123,13 +135,27 @@ class _IoError(UsageError):
     """A file cannot be read or written."""
 
 
+_LENGTH = re.compile(r"^\s*([+-]?(?:\d+\.?\d*|\.\d+))\s*(mm|in|inch|inches|\")?\s*$", re.I)
+
+
+def length_mm(value, option: str) -> float | None:
+    """A length option in mm: a bare number is mm; ``0.25in``, ``6.35mm`` say their unit."""
+    if value is None or isinstance(value, (int, float)):
+        return value
+    m = _LENGTH.match(str(value))
+    if not m:
+        raise UsageError(f"{option} takes a length such as 6.35, 6.35mm or 0.25in, not {value!r}")
+    unit = (m.group(2) or "mm").lower()
+    return float(m.group(1)) * (1.0 if unit == "mm" else 25.4)
+
+
 def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel=None,
              max_rpm=None, min_rpm=None, max_feed=None, planner="lookahead",
              tool_point="tip", min_rpm_step=10.0, tool=None, rapid=None,
              fz_policy="centred", fz_band=2.0, control=None, min_s_interval_ms=None,
              machine=None, tools_file=None, cutter=None, material=None,
              method="contact", ap=0.2, allowance_along="normal", decimal_point=None,
-             kinematics=None) -> Job:
+             operations=None, shape=None, stock=0.0, kinematics=None) -> Job:
     """A Job from command-line values and the profiles, checked; raises UsageError.
 
     Command-line values win; then the machine profile (--machine, else the
@@ -137,6 +163,11 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
     """
     from .profiles import load
 
+    bare = diameter is not None and not isinstance(diameter, (int, float)) and \
+        _LENGTH.match(str(diameter)) is not None and _LENGTH.match(str(diameter)).group(2) is None
+    diameter, corner_radius = length_mm(diameter, "--diameter"), length_mm(corner_radius,
+                                                                          "--corner-radius")
+    ap, stock = length_mm(ap, "--ap"), length_mm(stock, "--stock")
     profiles = load(tools_file=tools_file)
     name = machine or (profiles.default_machine[0] if profiles.default_machine else None)
     m = profiles.machine(name) if name else None
@@ -196,6 +227,16 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
         raise UsageError(f"--allowance-along must be normal or axis, not {allowance_along!r}")
     if not ap > 0:
         raise UsageError("--ap must be positive")
+    if not stock >= 0:
+        raise UsageError("--stock cannot be negative")
+    if shape is not None and shape not in ("ball", "bull-nose"):
+        raise UsageError(f"--shape must be ball or bull-nose, not {shape!r}")
+    if shape == "bull-nose" and corner_radius is None:
+        raise UsageError("--shape bull-nose needs --corner-radius")
+    if shape is not None and diameter is None:
+        raise UsageError("--shape needs --diameter")
+    if shape == "ball":
+        corner_radius = None
     chosen = Cutter(diameter, teeth, corner_radius, tool_point) if diameter is not None else None
     return Job(cutter=chosen, machine=Machine(accel, max_rpm, min_rpm, max_feed, rapid),
                cutting=CuttingData(vc, fz) if vc is not None else None,
@@ -204,8 +245,10 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
                                    min_s_interval_ms=min_s_interval_ms),
                tool=tool, teeth=teeth, control=control, control_from=control_from,
                method=Method(method, ap, allowance_along), decimal_point=decimal_point,
-               kinematics=kinematics,
-               tool_library={k: c for k, (c, _) in profiles.tools.items() if isinstance(k, int)})
+               tool_library={k: c for k, (c, _) in profiles.tools.items() if isinstance(k, int)},
+               operations=tuple(o.strip() for o in operations.split(",")) if operations else None,
+               shape_named=shape is not None or corner_radius is not None or cutter is not None,
+               stock_mm=stock, diameter_bare=bare, kinematics=kinematics)
 
 
 def _job_options(values: dict) -> dict:
@@ -252,16 +295,23 @@ def rewrite(
     fz_band: FzBand = 2.0, control: Control = None, decimal_point: DecimalPoint = None,
     min_s_interval_ms: SInterval = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
-    material: Material = None, method: MethodName = "contact", ap: Ap = 0.2,
-    allowance_along: AllowanceAlong = "normal", kinematics: KinematicsName = None,
+    material: Material = None, method: MethodName = "contact", ap: Ap = "0.2",
+    allowance_along: AllowanceAlong = "normal", operations: Operations = None,
+    shape: Shape = None, stock: Stock = "0", kinematics: KinematicsName = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary on stderr.")] = False,
 ) -> None:
     """Rewrite a program's S and F words; every other byte stays as it is."""
+    data = b""
     try:
         job = make_job(**_job_options(locals()))
         data = sys.stdin.buffer.read() if input == "-" else _read(input)
         result = rewrite_file(input, job, mesh_path=mesh, data=data)
         _write(output, result.text.encode("latin-1"), input)
+    except NothingToPlan as exc:
+        if output is None or output == "-":  # a filter never eats its input
+            sys.stdout.buffer.write(data)
+            sys.stdout.buffer.flush()
+        _fail(exc)
     except NcoptError as exc:
         _fail(exc)
     if not quiet:
@@ -273,6 +323,10 @@ def print_summary(s: Summary, console: Console) -> None:
     say = lambda text: console.print(text, markup=False)  # noqa: E731
     say(f"ncopt: {s.blocks} blocks, {s.cutting_blocks} cutting blocks planned, "
         f"{s.s_words} S and {s.f_words} F words written")
+    planned = sum(1 for o in s.operations if o.planned)
+    say(f"ncopt: {planned} of {len(s.operations)} operations planned; program in {s.units}")
+    for o in s.operations:
+        say("ncopt:   " + _op_line(o))
     for tool, what, source in s.tools:
         name = f"T{tool}" if tool >= 0 else "tool"
         say(f"ncopt: {name}: {what} (from {'the options' if source == 'options' else source})")
@@ -280,9 +334,16 @@ def print_summary(s: Summary, console: Console) -> None:
         say(f"ncopt: T{tool} left untouched: {why}")
     say(f"ncopt: vc {s.vc_m_min:.1f} m/min, fz {s.fz_mm:.4f} mm, highest S {s.max_s_rpm:.0f} RPM")
     say(f"ncopt: estimated cutting time {s.cut_time_before_min:.1f} -> "
-        f"{s.cut_time_after_min:.1f} min ({s.time_change_pct:+.1f} %)")
+        f"{s.cut_time_after_min:.1f} min ({s.time_change_pct:+.1f} %), the whole program "
+        f"(planned operations {s.planned_time_before_min:.1f} -> {s.planned_time_after_min:.1f} min)")
+    if s.untimed_moves:
+        say(f"ncopt: {s.untimed_moves} feed blocks are not timed (position or feed not known)")
     if s.mesh_edge_mm is not None:
         say(f"ncopt: mesh median edge {s.mesh_edge_mm:.2f} mm")
+    for tool, fit in s.mesh_fit:
+        say(f"ncopt: T{tool}: the mesh fits {fit.touching_pct:.1f} % of the planned cut "
+            f"({fit.air_pct:.1f} % in the air, {fit.gouge_pct:.1f} % inside the part, deepest "
+            f"{fit.deepest_gouge_mm:.3f} mm)")
     if s.normals_from == "toolpath":
         say(f"ncopt: no mesh: normals from the toolpath (stepover {s.stepover_mm:.2f} mm); "
             f"{s.one_sided_points} points at the edge of the machined area planned conservatively")
@@ -299,6 +360,16 @@ def print_summary(s: Summary, console: Console) -> None:
         say(f"warning: {w}")
     if len(s.warnings) > 10:
         say(f"warning: {len(s.warnings) - 10} more warnings")
+
+
+def _op_line(o) -> str:
+    """One operation of the summary: name, tool, lines, planned or why not, times."""
+    tool = f"T{o.tool}" if o.tool >= 0 else "T?"
+    head = f"{o.name} ({tool}, lines {o.lines}): "
+    if o.planned:
+        return (head + f"planned, {o.kind.lower()}, {o.time_before_min:.1f} -> "
+                f"{o.time_after_min:.1f} min, S {o.s_min_rpm:.0f}-{o.s_max_rpm:.0f} RPM")
+    return head + f"left as programmed ({o.time_before_min:.1f} min): {o.reason}"
 
 
 @app.command()
@@ -318,8 +389,9 @@ def batch(
     fz_band: FzBand = 2.0, control: Control = None, decimal_point: DecimalPoint = None,
     min_s_interval_ms: SInterval = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
-    material: Material = None, method: MethodName = "contact", ap: Ap = 0.2,
-    allowance_along: AllowanceAlong = "normal", kinematics: KinematicsName = None,
+    material: Material = None, method: MethodName = "contact", ap: Ap = "0.2",
+    allowance_along: AllowanceAlong = "normal", operations: Operations = None,
+    shape: Shape = None, stock: Stock = "0", kinematics: KinematicsName = None,
 ) -> None:
     """Rewrite every program of a folder in parallel; one bad file never stops the others."""
     from .batch import find_programs, run_batch, target_for

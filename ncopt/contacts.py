@@ -18,9 +18,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .geometry import MeshIndex, contacts_from_mesh
-from .kinematics import blend
-from .model import Contacts, Cutter, Motion, Toolpath
+from .geometry import MeshIndex, mesh_contacts
+from .kinematics import KINEMATICS, blend
+from .model import Contacts, Cutter, Toolpath
 from .pathnormals import (ONE_SIDED, ONE_SIDED_TILT_DEG, PathNormals, contacts_from_path,
                           path_normals, tilt_from_axis)
 from .remaining import r_eff_material_mm
@@ -47,6 +47,7 @@ class Sampled:
     contacts: Contacts
     point: np.ndarray  # (m,) int
     estimate: PathNormals | None = None  # mesh-free only
+    gap_mm: np.ndarray | None = None  # (m,) with a mesh: clearance of the cutter, mm (< 0 inside)
     axis: np.ndarray | None = None  # (m, 3) unit tool axis per sample; None: +Z
 
 
@@ -83,7 +84,21 @@ def sample_axes(tp: Toolpath, sample_mm: float) -> np.ndarray | None:
     if tp.tool_axis is None:
         return None
     point, frac = sample_fractions(tp, sample_mm)
-    return blend(tp.tool_axis[np.maximum(point - 1, 0)], tp.tool_axis[point], frac)
+    return axes_between(tp, np.maximum(point - 1, 0), point, frac)
+
+
+def axes_between(tp: Toolpath, a: np.ndarray, b: np.ndarray, frac: np.ndarray) -> np.ndarray:
+    """(m,) unit tool axes ``frac`` of the way from point ``a`` to point ``b``: rotary angles
+    turned linearly where the kinematics gave both ends (as the control turns them),
+    else the normalised blend of the end vectors (a vector along its great circle)."""
+    e = blend(tp.tool_axis[a], tp.tool_axis[b], frac)
+    if tp.tool_angles_deg is not None:
+        a0, a1 = tp.tool_angles_deg[a], tp.tool_angles_deg[b]
+        turn = np.isfinite(a0).all(axis=1) & np.isfinite(a1).all(axis=1) & (a0 != a1).any(axis=1)
+        if turn.any():
+            ang = a0[turn] + (a1[turn] - a0[turn]) * np.asarray(frac)[turn, None]
+            e[turn] = KINEMATICS[tp.kinematics].tool_axis(ang)
+    return e
 
 
 def centre_offsets(tp: Toolpath, cutter: Cutter, axis: np.ndarray | None) -> np.ndarray:
@@ -135,15 +150,18 @@ class Method:
 
 
 def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index: MeshIndex | None,
-                 sample_mm: float, tol_mm: float, method: Method = Method()) -> Sampled:
-    """Contacts of ``cutter`` along the toolpath, from the mesh if there is one."""
+                 sample_mm: float, tol_mm: float, method: Method = Method(),
+                 stock_mm: float = 0.0) -> Sampled:
+    """Contacts of ``cutter`` along the toolpath, from the mesh if there is one
+    (``stock_mm``: the allowance the program leaves on the mesh)."""
     if mesh_index is not None:
         if tp.tool_axis is not None:
             sample_mm = min(sample_mm, AXIS_SAMPLE_MM)
         xyz, point = sample_points(tp, sample_mm)
         axis = sample_axes(tp, sample_mm)
-        sampled = Sampled(contacts_from_mesh(xyz + centre_offsets(tp, cutter, axis), mesh_index,
-                                             cutter, tol_mm=tol_mm, axis=axis), point, axis=axis)
+        found = mesh_contacts(xyz + centre_offsets(tp, cutter, axis), mesh_index, cutter, tol_mm,
+                              stock_mm=stock_mm, axis=axis)
+        sampled = Sampled(found.contacts, point, gap_mm=found.gap_mm, axis=axis)
     else:
         cutting = selected & ~air_moves(tp)
         if tp.tool_axis is None:
@@ -152,34 +170,24 @@ def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index:
                                                     cutter)
         else:
             contacts, estimate = _path_contacts_5axis(tp, cutter, cutting)
-        sampled = Sampled(contacts, np.arange(tp.n), estimate, tp.tool_axis)
+        sampled = Sampled(contacts, np.arange(tp.n), estimate, axis=tp.tool_axis)
     if method.name == "material":
         sampled = replace(sampled, contacts=_with_material(tp, cutter, sampled, method))
     return sampled
 
 
 def _path_contacts_5axis(tp: Toolpath, cutter: Cutter, cutting: np.ndarray):
-    """Mesh-free contacts with a tilted axis.  The normals come from the block ends'
-    ball centres (the pieces a turning block is cut into would change the neighbours
-    the estimate sees: a program in rotary angles would not read like the same program
-    in vectors), along the centres' own path; inside a straight block the normal is
-    blended between its ends and R_eff taken with the piece's own axis."""
+    """Mesh-free contacts with a tilted axis: normals from the ball centres, along the
+    centres' own path (the tip's is longer or shorter where the axis turns)."""
     centres = tp.xyz_mm + centre_offsets(tp, cutter, tp.tool_axis)
-    same = np.concatenate(([False], tp.line[1:] == tp.line[:-1]))
-    piece = np.concatenate((same[1:], [False])) & (tp.motion == Motion.LINEAR)
-    ends = np.flatnonzero(~piece)
-    est, run_end = _end_normals(centres[ends], cutting[ends], tp.tool_axis[ends])
-    if ends.size < tp.n:
-        est = _blend_pieces(est, ends, piece)
-    at_end = np.zeros(tp.n, dtype=bool)
-    at_end[ends[run_end]] = True
-    return _recomputed(est, cutter, centres, tp.tool_axis, cutting, at_end), est
+    est, run_end = _end_normals(centres, cutting, tp.tool_axis)
+    return _recomputed(est, cutter, centres, tp.tool_axis, cutting, run_end), est
 
 
 def _end_normals(centres: np.ndarray, cutting: np.ndarray, axis: np.ndarray):
-    """Path normals at block ends, and (m,) bool: the first and last point of each run
-    of cuts.  The last point is where the tool leaves the part (a lead-out ends above
-    it): no neighbour of the others, it takes the normal before it."""
+    """Path normals, and (m,) bool: the first and last point of each run of cuts.  The
+    last point is where the tool leaves the part (a lead-out ends above it): no
+    neighbour of the others, it takes the normal before it."""
     step = np.linalg.norm(np.diff(centres, axis=0), axis=1)
     path = np.concatenate(([0.0], np.cumsum(step)))
     before = np.concatenate(([False], cutting[:-1]))
@@ -188,20 +196,6 @@ def _end_normals(centres: np.ndarray, cutting: np.ndarray, axis: np.ndarray):
     inner = np.flatnonzero(last & before)
     est.normal[inner] = est.normal[inner - 1]
     return est, last | (cutting & ~before)
-
-
-def _blend_pieces(est: PathNormals, ends: np.ndarray, piece: np.ndarray) -> PathNormals:
-    """Normals at every point: each piece blended between the end before it and its
-    block's end point (confidence: the lower of the two)."""
-    n = piece.shape[0]
-    at = np.searchsorted(ends, np.arange(n))
-    nxt, prv = ends[np.minimum(at, ends.size - 1)], ends[np.maximum(at - 1, 0)]
-    frac = np.where(piece, (np.arange(n) - prv) / np.maximum(nxt - prv, 1), 1.0)
-    a, b = np.maximum(at - 1, 0), np.minimum(at, ends.size - 1)
-    normal = blend(est.normal[a], est.normal[b], frac)
-    conf = np.minimum(est.confidence[a], est.confidence[b])
-    normal[~piece], conf[~piece] = est.normal[b[~piece]], est.confidence[b[~piece]]
-    return PathNormals(normal, conf, est.stepover_mm)
 
 
 def _recomputed(est: PathNormals, cutter: Cutter, centres, axis, cutting,

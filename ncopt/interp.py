@@ -15,14 +15,14 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .errors import NcoptError
 from .expr import Params, Unknown
 from .feedmode import G93, G95, tip_feed_mm_min
-from .model import LineKind, Program, Toolpath
+from .model import LineKind, LineState, Program, Toolpath
 from .orientation import Orientation, read_orientation, with_tool_axis
 
 MM_PER_INCH = 25.4
@@ -88,6 +88,7 @@ def interpret(prog: Program, start: StartState = StartState(),
     pos_mm, known = _positions(prog, lines, modal, executed, poisoned, warnings)
     _check_comp_corners(prog, lines, modal, pos_mm, known, executed)
     tp = _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings, orient)
+    tp = replace(tp, lines=_line_state(prog, lines, modal, executed))
     return tp if orient is None else with_tool_axis(tp, orient)
 
 
@@ -610,3 +611,51 @@ def _center_from_r(prog, i, modal, p0, p1, radius, cw, a, b):
     center[a] = p0[a] + du / 2 - sign * h * dv / chord
     center[b] = p0[b] + dv / 2 + sign * h * du / chord
     return center
+
+
+_BLOCK_DELETE = re.compile(r"\s*(?:N[0-9.]+\s*)?/")
+
+
+def block_delete_lines(prog: Program) -> np.ndarray:
+    """(n_lines,) bool: lines that start with the block-delete slash ``/``."""
+    out = np.zeros(prog.n_lines, dtype=bool)
+    if "/" not in prog.text:
+        return out
+    raw = np.frombuffer(prog.text.encode("latin-1"), dtype=np.uint8)
+    slash = np.flatnonzero(raw == ord("/"))
+    for i in np.unique(np.searchsorted(prog.line_start, slash, side="right") - 1).tolist():
+        out[i] = bool(_BLOCK_DELETE.match(prog.line_text(i)))
+    return out
+
+
+def _calls(prog: Program, lines: _LineTable, modal: _Modal) -> np.ndarray:
+    """(n_lines,) bool: lines that hand control to code ncopt does not read (a
+    subprogram or macro call, a return, flow control, a line it does not interpret)."""
+    call = lines.has_m({98, 99}) | lines.has_g({650, 660})
+    call |= lines.present("L") & ~lines.has_g({100, 760}) & ~np.isin(modal.motion, list(CANNED))
+    for i, reason in prog.opaque_reason.items():
+        if reason.upper() not in HARMLESS_OPAQUE and not reason.endswith("="):
+            call[i] = True
+    return call
+
+
+def _known_after(n: int, word: np.ndarray, value: np.ndarray, lost: np.ndarray) -> np.ndarray:
+    """(n,) bool: the value in force is a word the program states (1), or was lost (0) at
+    a ``lost`` line or a word whose value is unknown, until the next known word."""
+    code = np.full(n, np.nan)
+    code[word] = np.where(np.isnan(value[word]), 0.0, 1.0)
+    code[lost] = 0.0
+    return ffill(code, 1.0) == 1.0
+
+
+def _line_state(prog: Program, lines: _LineTable, modal: _Modal, executed: np.ndarray) -> LineState:
+    n = lines.n
+    block_delete = block_delete_lines(prog)
+    call = _calls(prog, lines, modal) & executed
+    s_word, f_word = lines.present("S") & executed, lines.present("F") & executed
+    s_known = _known_after(n, s_word, lines.value("S"), call | (block_delete & s_word))
+    f_known = _known_after(n, f_word, lines.value("F"), call | (block_delete & f_word))
+    return LineState(executed=executed, tool=modal.tool.astype(np.int32),
+                     s_rpm=modal.spindle_rpm, f_prog=modal.feed, s_known=s_known,
+                     f_known=f_known, block_delete=block_delete,
+                     canned=np.isin(modal.motion, list(CANNED)) & executed, call=call)

@@ -45,10 +45,9 @@ whatever ``--kinematics`` says.
 Between two block ends a TCP control moves the tool axis one of two ways:
 rotary angles are interpolated linearly (LinuxCNC, Fanuc G43.4, Sinumerik
 ORIAXES), vectors along the great circle between them (Fanuc G43.5,
-Sinumerik ORIVECT).  :func:`angle_steps` says how finely a block with
-turning angles is cut so that the normalised blend of the pieces' end vectors
-(:func:`blend`, the great circle) stays within ``MAX_BLEND_ERROR_DEG`` (0.005
-deg) of the angle interpolation.
+Sinumerik ORIVECT): ``ncopt.contacts.axes_between`` does the same, the first
+through :meth:`Kinematics.tool_axis` of the turned angles, the second with
+:func:`blend`.
 
 Tilted working planes (3+2): Fanuc ``G68.2 X Y Z I J K`` (Euler angles, Z then
 the new X then the new Z) sets a frame ``p_part = o + R p`` with ``R =
@@ -66,12 +65,6 @@ import numpy as np
 from .errors import UsageError
 
 VECTOR = "vector"
-# The blend of a piece's end vectors stays this close to the axis its angles give: the
-# chord of a curve e(t) errs by at most max|e''| / 8, and |e''| <= (sum of the angle
-# turns)^2 (every second derivative of these kinematics is at most 1), so a piece may
-# turn its angles by sqrt(8 tol) in sum (1.51 deg for 0.005 deg).
-MAX_BLEND_ERROR_DEG = 0.005
-MAX_TURN_DEG = float(np.degrees(np.sqrt(8.0 * np.radians(MAX_BLEND_ERROR_DEG))))
 
 
 def _ac_iso(a, b, c):
@@ -155,13 +148,6 @@ def blend(e0: np.ndarray, e1: np.ndarray, frac: np.ndarray) -> np.ndarray:
     f = np.asarray(frac, dtype=np.float64)[..., None]
     mix = unit(e0 * (1.0 - f) + e1 * f)
     return np.where(np.linalg.norm(mix, axis=-1, keepdims=True) > 0.5, mix, e1)
-
-
-def angle_steps(start_deg: np.ndarray, end_deg: np.ndarray) -> np.ndarray:
-    """(m,) pieces each block of turning rotary axes is cut into (1 if none turns):
-    each piece turns its angles by at most ``MAX_TURN_DEG`` in sum."""
-    turn = np.nan_to_num(np.abs(np.asarray(end_deg) - np.asarray(start_deg)), nan=0.0)
-    return np.maximum(np.ceil(turn.sum(axis=-1) / MAX_TURN_DEG - 1e-9), 1).astype(np.int64)
 
 
 def tilt_deg(axis: np.ndarray) -> np.ndarray:

@@ -119,6 +119,37 @@ class Program:
 
 
 @dataclass(frozen=True)
+class LineState:
+    """The program's state per source line, (n_lines,) arrays: what the control has in
+    force when it runs each line (the line's own words included).
+
+    executed : bool, the control runs the line in reading order: not a subprogram body,
+        not after M2/M30 or the closing ``%``
+    tool : int32, active tool number (-1 before any)
+    s_rpm : float64, programmed S in force (0 before any S)
+    f_prog : float64, programmed F in force, in the program's units per minute (NaN
+        before any F)
+    s_known, f_known : bool, the S (F) in force is the program's own word: False after a
+        subprogram call, a macro, a block-delete line with an S (F) word or a line ncopt
+        does not interpret, and where the word is an expression ncopt cannot evaluate,
+        until the program states S (F) again
+    block_delete : bool, the line starts with ``/`` (it runs or not at the operator's switch)
+    canned : bool, a canned cycle (G73, G76, G81-G89) is in force on the line
+    call : bool, the line calls a subprogram or macro (M98, G65, L.., o-call, CALL)
+    """
+
+    executed: np.ndarray
+    tool: np.ndarray
+    s_rpm: np.ndarray
+    f_prog: np.ndarray
+    s_known: np.ndarray
+    f_known: np.ndarray
+    block_delete: np.ndarray
+    canned: np.ndarray
+    call: np.ndarray
+
+
+@dataclass(frozen=True)
 class Toolpath:
     """Cutter locations (CL points) of a program, one row per point.
 
@@ -146,18 +177,24 @@ class Toolpath:
         subprogram calls, expressions it cannot evaluate...): such moves are not planned.
     tool : (n,) int32
         Active tool number (-1 if none).
-    line_inch : (n_lines,) bool or None
-        The program is in inches (G20) on each line; words are written back in inch.
-    spindle_on : (n,) bool or None
-        The spindle turns during the move.
+    line_inch : (n_lines,) bool
+        The program is in inches (G20) at each line; words are written back in inch.
+    spindle_on : (n,) bool
+        The spindle turns (M3/M4 in force) during the move.
+    lines : LineState
+        The modal state per source line.
     warnings : tuple[str, ...]
         Located messages about lines left alone.
     tool_axis : (n, 3) float64 or None
         Unit tool axis ``e`` at each point, from the tip toward the spindle, in
         the part frame (the frame of ``xyz_mm``: a tilted working plane's points
         are carried into it).  Between two points the axis is their normalised
-        blend (``ncopt.kinematics.blend``).  None: +Z everywhere (3-axis; the
+        blend (``ncopt.kinematics.blend``), or where both have ``tool_angles_deg``
+        the axis of the angles turned linearly.  None: +Z everywhere (3-axis; the
         fast path).  Rows of moves ncopt does not plan may hold +Z.
+    tool_angles_deg : (n, 3) float64 or None
+        A B C at each point where the machine's kinematics gave the axis (NaN
+        elsewhere); None when none did.
     kinematics : str or None
         What gave the tool axes: a name of ``ncopt.kinematics.KINEMATICS``,
         ``"vector"`` (tool vectors in the program), or None (the tool never tilts).
@@ -177,10 +214,12 @@ class Toolpath:
     tool: np.ndarray
     line_inch: np.ndarray | None = None
     spindle_on: np.ndarray | None = None
+    lines: LineState | None = None
     warnings: tuple = ()
     tool_axis: np.ndarray | None = None
     kinematics: str | None = None
     inverse_time: np.ndarray | None = None
+    tool_angles_deg: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = self.xyz_mm.shape[0]

@@ -208,6 +208,17 @@ def _moves(lines, modal, executed, axis, angles, why, switch, frame, r, tcp_on) 
     return blocked
 
 
+def tcp_switches(prog) -> np.ndarray:
+    """(n_lines,) bool: the Sinumerik TCP and orientation-mode lines (TRAORI, TRAFOOF,
+    ORIWKS...), which ncopt reads here: they use no S or F, so they need not run with
+    the program's own (they stay opaque, never edited)."""
+    out = np.zeros(prog.n_lines, dtype=bool)
+    for i, head in prog.opaque_reason.items():
+        if head.upper() in KW_TCP - {"FUNCTION"}:
+            out[i] = True
+    return out
+
+
 def _keywords(prog, executed) -> dict:
     """{0-based line: keyword} of the executed opaque lines that concern the tool axis."""
     wanted = KW_SWIVEL | KW_ROTATIONS | KW_FRAME_OFF | KW_TCP | {"TRANS"}
@@ -428,54 +439,27 @@ def _orientation_opaque(prog, lines, executed, keywords) -> np.ndarray:
 
 def with_tool_axis(tp, o: Orientation):
     """``tp`` (a :class:`~ncopt.model.Toolpath` in programmed coordinates) in the part
-    frame with its tool axis per point.
-
-    A planned block that turns rotary angles is cut into pieces
-    (:func:`ncopt.kinematics.angle_steps`) along its straight tip path, so that
-    between two points the axis may be blended (:func:`ncopt.kinematics.blend`);
-    points in a tilted working plane are carried into the part frame.
-    ``tool_axis`` stays None where every axis is +Z.
-    """
+    frame with its tool axis per point (and the rotary angles where a kinematics gave
+    it: between two such points the angles turn linearly); points in a tilted working
+    plane are carried into the part frame.  ``tool_axis`` stays None where every axis
+    is +Z."""
     from dataclasses import replace
 
     if tp.n < 2:
         return tp
-    li = tp.line[1:].astype(np.int64)
-    first = np.concatenate(([True], li[1:] != li[:-1]))
-    origin = np.zeros(3) if o.kinematics in KINEMATICS else np.full(3, np.nan)
-    a_start = _before(o.angles_deg, origin)
-    a0 = np.where(first[:, None], a_start[li], o.angles_deg[li])
-    a1 = o.angles_deg[li]
-    both = np.isfinite(a0).all(1) & np.isfinite(a1).all(1) & tp.known[1:]
-    from .kinematics import angle_steps
-
-    k = np.where(both, angle_steps(np.where(both[:, None], a0, 0), np.where(both[:, None], a1, 0)), 1)
-    counts = np.concatenate(([1], k))
-    rows = np.repeat(np.arange(tp.n), counts)
-    q = np.arange(rows.size) - np.repeat(np.cumsum(counts) - counts, counts) + 1
-    f = (q / counts[rows])[:, None]
-    xyz = tp.xyz_mm.copy()[rows]
-    split = counts[rows] > 1
-    prev = tp.xyz_mm[np.maximum(rows - 1, 0)]
-    xyz[split] = prev[split] + (xyz[split] - prev[split]) * f[split]
-    lines_of = np.concatenate(([-1], li))[rows]
-    axis = np.tile(Z, (rows.size, 1))
-    has = lines_of >= 0
-    axis[has] = o.axis[lines_of[has]]
-    if split.any():
-        m = rows[split] - 1
-        ang = a0[m] + (a1[m] - a0[m]) * f[split]
-        axis[split] = KINEMATICS[o.kinematics].tool_axis(ang)
-    if o.frame is not None:
-        frame_of = np.where(has, o.frame[np.maximum(lines_of, 0)], -1)
-        for idx, (org, rot) in enumerate(o.frames):
-            sel = frame_of == idx
+    line = np.maximum(tp.line, 0)
+    start = tp.line < 0
+    axis = np.where(start[:, None], Z, o.axis[line])
+    angles = np.where(start[:, None], np.nan, o.angles_deg[line])
+    xyz = tp.xyz_mm
+    if o.frames:
+        xyz = xyz.copy()
+        frame_of = np.where(start, -1, o.frame[line])
+        for k, (org, rot) in enumerate(o.frames):
+            sel = frame_of == k
             xyz[sel] = org + xyz[sel] @ rot.T
-    vertical = np.all(axis == Z, axis=1).all()
-    return replace(tp, xyz_mm=xyz, line=tp.line[rows], motion=tp.motion[rows],
-                   feed_mm_min=tp.feed_mm_min[rows], spindle_rpm=tp.spindle_rpm[rows],
-                   seg_len_mm=tp.seg_len_mm[rows] / counts[rows], known=tp.known[rows],
-                   tool=tp.tool[rows],
-                   spindle_on=None if tp.spindle_on is None else tp.spindle_on[rows],
-                   inverse_time=None if tp.inverse_time is None else tp.inverse_time[rows],
-                   tool_axis=None if vertical else axis, kinematics=o.kinematics)
+    if np.all(axis == Z):
+        return replace(tp, xyz_mm=xyz, kinematics=o.kinematics)
+    turned = np.isfinite(angles).all(axis=1)
+    return replace(tp, xyz_mm=xyz, tool_axis=axis, kinematics=o.kinematics,
+                   tool_angles_deg=angles if turned.any() else None)

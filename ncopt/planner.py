@@ -46,6 +46,9 @@ class Blocks:
     spindle_start : the spindle (re)starts at this block (M3/M4 after a stop or a tool
         change): the control brings it to speed, nothing carries over from before
     running : the spindle turns during the block
+    k_limited : the spindle's change over the block is bounded by the feed it would have
+        at the target fz (S^2 by K*L, as in a cut) rather than by its own duration: the
+        feed moves of a planned operation, whose F ncopt sets from S (default: cutting)
     """
 
     length_mm: np.ndarray
@@ -56,6 +59,7 @@ class Blocks:
     fixed_rpm: np.ndarray
     spindle_start: np.ndarray | None = None
     running: np.ndarray | None = None
+    k_limited: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = self.length_mm.shape[0]
@@ -63,6 +67,7 @@ class Blocks:
             object.__setattr__(self, "spindle_start", np.zeros(n, dtype=bool))
         if self.running is None:
             object.__setattr__(self, "running", np.ones(n, dtype=bool))
+
 
 
 @dataclass(frozen=True)
@@ -121,8 +126,9 @@ def increments(blocks: Blocks, machine: Machine, k: float) -> tuple[np.ndarray, 
     inc_s : (nb,) RPM, other blocks: a*T over their whole duration T (inf for cutting)
     """
     ramp = machine.accel_rpm_s * blocks.time_s
-    inc_s2 = np.where(blocks.cutting & ~blocks.spindle_start, k * blocks.length_mm, np.inf)
-    inc_s = np.where(blocks.cutting | blocks.spindle_start, np.inf, ramp)
+    limited = blocks.cutting if blocks.k_limited is None else blocks.k_limited
+    inc_s2 = np.where(limited & ~blocks.spindle_start, k * blocks.length_mm, np.inf)
+    inc_s = np.where(limited | blocks.spindle_start, np.inf, ramp)
     return inc_s2, inc_s
 
 

@@ -106,14 +106,22 @@ class Targets:
 
 
 def plan_edits(prog: Program, targets: Targets, s_style: WordStyle,
-               f_style: WordStyle) -> Edits:
-    """Edits that make S and F in force equal the targets, word by word."""
+               f_style: WordStyle, editable: np.ndarray | None = None) -> Edits:
+    """Edits that make S and F in force equal the targets, word by word.
+
+    ``editable`` (n_lines,) bool: the lines whose words may change or get new ones
+    (default: every word line).  A target on a line that may not be edited is met by a
+    word on the last editable line before it; where there is none, VerificationError.
+    """
+    if editable is None:
+        editable = prog.line_kind == LineKind.WORDS
+    editable = editable & (prog.line_kind == LineKind.WORDS)
     edits = Edits.of()
     appended = {}
     for code, values, style in ((S_CODE, targets.s_value, s_style),
                                 (F_CODE, targets.f_value, f_style)):
-        edits += _replace_words(prog, code, targets.line, values, style)
-        appended[code] = _append_words(prog, code, targets.line, values, style)
+        edits += _replace_words(prog, code, targets.line, values, style, editable)
+        appended[code] = _append_words(prog, code, targets.line, values, style, editable)
     return edits + _insertions(prog, appended, s_style)
 
 
@@ -122,11 +130,12 @@ def _consumers(line: np.ndarray, values: np.ndarray):
     return line[use], values[use]
 
 
-def _replace_words(prog, code, line, values, style) -> Edits:
-    """Existing words take the target of the first consumer at or after them."""
+def _replace_words(prog, code, line, values, style, editable) -> Edits:
+    """Existing words on editable lines take the target of the first consumer at or
+    after them."""
     c_line, c_val = _consumers(line, values)
     words = np.flatnonzero(prog.word_letter == code)
-    words = words[prog.line_kind[prog.word_line[words]] == LineKind.WORDS]  # opaque: never
+    words = words[editable[prog.word_line[words]]]
     if words.size == 0 or c_line.size == 0:
         return Edits.of()
     nxt = np.searchsorted(c_line, prog.word_line[words], side="left")
@@ -142,13 +151,15 @@ def _replace_words(prog, code, line, values, style) -> Edits:
                  style.format_all(new), n if code == S_CODE else 0, n if code == F_CODE else 0)
 
 
-def _append_words(prog, code, line, values, style):
+def _append_words(prog, code, line, values, style, editable):
     """Consumers whose target differs from what is in force get a new word.
 
     In force at a consumer: its own word (rewritten to the target); else the last
     word since the previous consumer, which is rewritten to this target unless it
-    stands on an opaque line (left alone: its own value holds); else the previous
-    consumer's target.
+    stands on a line that may not be edited (left alone: its own value holds); else
+    the previous consumer's target.  The new word goes on the consumer's line, or where
+    that may not be edited, on the last editable line after the previous consumer (and
+    after a word that is left alone).
     """
     c_line, c_val = _consumers(line, values)
     if c_line.size == 0:
@@ -157,12 +168,15 @@ def _append_words(prog, code, line, values, style):
     if sel.size == 0:  # no such word anywhere: every change of target needs one
         prev = np.concatenate(([np.nan], c_val[:-1]))
         need = ~_same_formatted(c_val, prev, style)
-        return c_line[need], style.format_all(c_val[need])
+        floor = np.concatenate(([-1], c_line[:-1]))[need]
+        return _carriers(prog, c_line[need], floor, editable, code), style.format_all(c_val[need])
     w_line = prog.word_line[sel]
-    w_opaque = prog.line_kind[w_line] != LineKind.WORDS
+    w_opaque = ~editable[w_line]
     w_val = prog.word_value[sel]
     own = np.isin(c_line, w_line[~w_opaque])
-    last = np.searchsorted(w_line, c_line, side="left") - 1  # last word before the line
+    # the last word at or before the consumer's line: a word on its own line that may not
+    # be edited holds its own value there
+    last = np.searchsorted(w_line, c_line, side="right") - 1
     prev_line = np.concatenate(([-1], c_line[:-1]))
     has = last >= 0
     between = has & (w_line[np.maximum(last, 0)] > prev_line)
@@ -170,10 +184,32 @@ def _append_words(prog, code, line, values, style):
     previous = np.concatenate(([np.nan], c_val[:-1]))  # a target, written by the style
     opaque_val = w_val[np.maximum(last, 0)]  # a word left as the program has it
     settled = own | (between & ~opaque_between)
-    same = np.where(opaque_between, _says_exactly(opaque_val, c_val, style),
-                    _same_formatted(c_val, previous, style))
+    # a word left alone holds its own value; an expression there (S#<rpm>) holds what
+    # the program computes, which ncopt did not change
+    held = _says_exactly(opaque_val, c_val, style) | np.isnan(opaque_val)
+    same = np.where(opaque_between, held, _same_formatted(c_val, previous, style))
     need = ~settled & ~same
-    return c_line[need], style.format_all(c_val[need])
+    floor = np.where(opaque_between, w_line[np.maximum(last, 0)], prev_line)[need]
+    return _carriers(prog, c_line[need], floor, editable, code), style.format_all(c_val[need])
+
+
+def _carriers(prog, lines: np.ndarray, floor: np.ndarray, editable: np.ndarray, code: int):
+    """Where each needed word goes: its consumer's line if editable, else the last
+    editable line after ``floor`` and before it; VerificationError where there is none."""
+    if lines.size == 0 or editable[lines].all():
+        return lines
+    can = np.zeros(prog.n_lines, dtype=bool)
+    can[prog.word_line] = True
+    can &= editable
+    last_can = np.maximum.accumulate(np.where(can, np.arange(prog.n_lines), -1))
+    at = np.where(editable[lines], lines, last_can[np.maximum(lines - 1, 0)])
+    bad = np.flatnonzero(at <= floor)
+    if bad.size:
+        line = int(lines[bad[0]])
+        raise VerificationError(
+            f"the program's own {chr(code)} cannot be put back in force before this line "
+            "without editing a line ncopt leaves alone; nothing written", prog.path, line + 1)
+    return at
 
 
 def _says_exactly(old: np.ndarray, new: np.ndarray, style: WordStyle) -> np.ndarray:

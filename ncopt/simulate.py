@@ -267,7 +267,7 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
     job = replace(job, cutter=cutter)
     moves = _move_table(prog, tp, job, tool_mask)
     planned = np.concatenate(([False], moves.candidate & (moves.target_rpm > 0)))
-    stamp = read_stamps(prog).get(int(np.max(tp.tool[1:][tool_mask], initial=-1)))
+    stamp = _stamp_of(prog, int(np.max(tp.tool[1:][tool_mask], initial=-1)))
     if job.cutting is None and stamp is not None:  # rewritten by ncopt: its nominal data
         cut = stamp.cutting
     else:
@@ -342,6 +342,13 @@ def _starts(x: np.ndarray) -> np.ndarray:
     return np.concatenate(([0.0], np.cumsum(x)[:-1])) if x.size else x.copy()
 
 
+def _stamp_of(prog: Program, tool: int):
+    """The first ncopt stamp of T``tool`` (None: the program is not an ncopt output)."""
+    found = sorted((st for (t, _), st in read_stamps(prog).items() if t == tool),
+                   key=lambda st: st.line)
+    return found[0] if found else None
+
+
 def _evaluated_tool(prog: Program, tp: Toolpath, job: Job, path: str) -> tuple[Cutter, np.ndarray]:
     """The cutter to evaluate and (nm,) bool: the moves made with it.
 
@@ -363,6 +370,9 @@ def _evaluated_tool(prog: Program, tp: Toolpath, job: Job, path: str) -> tuple[C
     if job.cutter is not None:
         return job.cutter, mask
     info = cutter_for(tool_table(prog), used[0] if used else -1, len(used))
+    stamp = _stamp_of(prog, used[0] if used else -1)
+    if info is None and stamp is not None:  # the cutter ncopt planned with, in mm
+        return stamp.cutter, mask
     if info is None or info.kind not in (BALL, BULL):
         raise UsageError("the program's comments do not describe a ball or bull-nose cutter; "
                          "give --diameter (and --corner-radius for a bull-nose)", path)

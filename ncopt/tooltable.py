@@ -94,6 +94,8 @@ def tool_table(prog: Program) -> dict[int, ToolInfo]:
     for line in lines.tolist():
         for c in _COMMENT.finditer(prog.line_text(line)):
             body = c.group(1) if c.group(1) is not None else c.group(2)
+            if (body or "").lstrip().startswith("ncopt "):
+                continue  # ncopt's own stamp: nominal data in mm, not a tool description
             info = parse_tool_comment(body or "", line + 1)
             if info is None or info.number in table:
                 continue

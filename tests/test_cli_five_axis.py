@@ -72,7 +72,7 @@ def test_the_machine_profile_gives_the_kinematics(tmp_path: Path):
                         'kinematics = "xyzac-trt"\n')
     out = tmp_path / "o.nc"
     result = invoke(["rewrite", prog, "--diameter", "10", "--vc", "150", "--fz", "0.08",
-                     "--machine", "m", "--tools", profiles, "-o", out])
+                     "--machine", "m", "--tools", profiles, "--operations", "all", "-o", out])
     assert result.exit_code == Exit.OK, result.stderr
     assert "ncopt: 7 blocks, 3 cutting blocks planned" in result.stderr
     assert out.read_text().count("S") > ROTARY.count("S")

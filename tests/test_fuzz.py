@@ -25,8 +25,9 @@ from ncopt.parse import parse_text
 ROOT = Path(__file__).resolve().parents[1]
 CORPUS = (ROOT / "../shared/corpus").resolve()
 PATH = "fuzz.nc"
+# every operation planned, whatever it is: hostile input should reach every stage
 JOB = Job(cutter=Cutter(10.0, 2), machine=Machine(accel_rad_s2=100.0, max_rpm=12000.0),
-          cutting=CuttingData(vc_m_min=100.0, fz_mm=0.05))
+          cutting=CuttingData(vc_m_min=100.0, fz_mm=0.05), operations=("all",))
 HEADER = "G21 G90 G17\nT1 M6\nS5000 M3\nG0 X0 Y0 Z5\nG1 Z0 F500\n"
 
 

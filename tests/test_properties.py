@@ -190,7 +190,9 @@ def jobs(draw):
                           fz_mm=draw(st.floats(0.03, 0.15)))
     opts = PlanOptions(planner=draw(st.sampled_from(["lookahead", "forward"])),
                        min_rpm_step=draw(st.sampled_from([1.0, 10.0, 50.0])))
-    return Job(cutter=Cutter(2 * RADIUS, 2), machine=machine, cutting=cutting, options=opts)
+    # some draws lie on the bowl's flat bottom, a 2D pass by itself: planned all the same
+    return Job(cutter=Cutter(2 * RADIUS, 2), machine=machine, cutting=cutting, options=opts,
+               operations=("all",))
 
 
 @pytest.fixture(scope="module")
@@ -232,9 +234,9 @@ def test_rewrite_keeps_geometry_changes_only_sf_and_is_idempotent(bowl_case, bow
         for f in _words(out_prog, F_CODE):
             assert f.endswith(".") == f_in.endswith(".")
             assert len(f.partition(".")[2]) == len(f_in.partition(".")[2])
-        # rewriting the output with the same explicit cutting data changes nothing
-        assert rewrite_text(out, bare, "gen.nc", bowl_index).text == out
-        # the stamp: one comment line more, everything else as without it; stable too
+        # the stamp: one comment line more, everything else as without it; rewriting a
+        # stamped output changes nothing (without the stamp, the feed each block stands
+        # for is no longer in the program: a second run re-plans from the rewritten F)
         stamped = rewrite_text(text, job, "gen.nc", bowl_index).text
         extra = _inserted_line(out, stamped)
         assert parse_text(extra, "stamp").line_kind.tolist() in ([LineKind.BLANK], [])

@@ -41,7 +41,7 @@ FAST = ["--sample", "1.0"]
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 SIM_KEYS = {"cutting_time_min", "rapid_time_min", "fz_in_band_pct", "fz_max_over_pct",
             "vc_max_over_pct", "max_rpm", "s_words"}
-STAMP = re.compile(r"^\s*[(;]\s*ncopt \S+ T-?\d+ vc=")
+STAMP = re.compile(r"^\s*[(;]\s*ncopt \S+ T-?\d+ (?:lines=\d+-\d+ )?vc=")
 
 
 # ------------------------------------------------------------------ helpers ----
@@ -75,13 +75,14 @@ def usage_message(result) -> str:
 
 
 def flat_raster(passes: int = 4, length: float = 40.0) -> str:
-    """A few ball passes on a flat floor: the requirement is the highest spindle speed."""
+    """A few ball passes on a nearly flat floor (a 2.3 deg slope, so that it is a surface
+    finish and not a facing pass): the requirement is the highest spindle speed."""
     lines = ["(flat raster, D16 ball)", "G21 G90", "T4 M6", "S1393 M3", "G0 X0 Y0 Z5",
              "G1 Z0 F279"]
     xs = np.arange(0.0, length + 0.5, 1.0)
     for i in range(passes):
         for x in (xs if i % 2 == 0 else xs[::-1]):
-            lines.append(f"X{x:.3f} Y{i * 1.6:.3f}")
+            lines.append(f"X{x:.3f} Y{i * 1.6:.3f} Z{0.04 * x:.3f}")
     return "\n".join(lines + ["G0 Z5", "M5", "M30"]) + "\n"
 
 
@@ -335,7 +336,8 @@ def test_inspect_json():
     assert set(info) == {"path", "dialect", "dialect_marks", "units", "lines", "blocks",
                          "moves", "feed_moves", "rapids", "arcs", "unknown_moves", "tools",
                          "tools_used", "opaque", "warnings", "s_range_rpm", "f_range_mm_min",
-                         "cut_length_mm", "cut_time_min"}
+                         "cut_length_mm", "cut_time_min", "kinematics", "tilt_range_deg"}
+    assert info["kinematics"] is None and info["tilt_range_deg"] == [0.0, 0.0]  # 3 axes
     assert info["path"] == str(BOWL_MPF)
     assert (info["dialect"], info["units"], info["lines"]) == ("sinumerik", "mm", 21902)
     assert info["dialect_marks"]  # why the dialect was chosen
@@ -487,7 +489,7 @@ def side_by_side(a, b, a_name="bowl.mpf", b_name="bowl_opt.mpf"):
     return totals, text.splitlines()
 
 
-FOLD = re.compile(r"^  ··· (\d+) unchanged lines ···$")
+FOLD = re.compile(r"^  ··· (\d+) unchanged lines? ···$")
 
 
 def parse_rows(lines):
@@ -661,7 +663,8 @@ def test_rewrite_with_the_shipped_profiles(bowl_opt):
     assert "ncopt: vc 70.0 m/min, fz 0.1000 mm, highest S 15000 RPM" in lines
     assert any(line.startswith("ncopt: sinumerik control: ") for line in lines)
     text = out.read_bytes().decode("latin-1")
-    assert re.match(r"; ncopt \S+ T4 vc=70\.0+ fz=0\.10+ D=16 r=8 z=2 ", text)
+    assert re.match(r"; ncopt \S+ T4 lines=1-21902 vc=70\.0+ fz=0\.10+ D=16mm r=8mm z=2 band=2 "
+                    r"S0=1393 F0=279mm/min ", text)
     prog = parse_text(text)
     s = prog.word_value[prog.word_letter == ord("S")]
     assert s.max() == 15000 and s.size > 10000
@@ -736,7 +739,7 @@ def test_version_is_the_package_version_and_the_stamps(flat, tmp_path):
     assert pyproject["project"]["version"] == ncopt.__version__
     out = tmp_path / "out.nc"
     assert invoke(["rewrite", flat, "--diameter", "16", *SPINDLE, "-o", out, "-q"]).exit_code == 0
-    assert out.read_text().startswith(f"(ncopt {ncopt.__version__} T4 vc=")
+    assert out.read_text().startswith(f"(ncopt {ncopt.__version__} T4 lines=1-")
 
 
 # ---------------------------------------------------------------- exit codes ----
@@ -755,8 +758,9 @@ def test_exit_planning_when_nothing_can_be_planned(tmp_path):
     no_speed.write_text("G21 G90\nG0 X0 Y0 Z5\nM3\nG1 Z0 F100\nX10\nY10\nX0\nM30\n")
     for path, message in ((empty, "nothing to plan (no feed moves with a running spindle and a "
                                   "known position)"),
-                          (no_speed, "the program gives no spindle speed or feed for its cuts; "
-                                     "give --vc and --fz")):
+                          (no_speed, "nothing to plan: the program (lines 1-8): the program "
+                                     "states no S (the spindle runs at a speed set at the "
+                                     "machine): give --vc and --fz to plan it")):
         out = tmp_path / "out.nc"
         result = invoke(["rewrite", path, "--diameter", "6", *SPINDLE, "-o", out])
         assert result.exit_code == Exit.PLANNING

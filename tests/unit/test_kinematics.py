@@ -1,6 +1,6 @@
 """ncopt.kinematics: each named kinematics against an independent derivation (rotation
 matrices for ISO 841, LinuxCNC's own forward kinematics for its variants), the blend
-between block ends, the pieces a turning block is cut into, G68.2's frame."""
+between block ends, G68.2's frame."""
 
 from __future__ import annotations
 
@@ -12,8 +12,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from ncopt.errors import UsageError
-from ncopt.kinematics import (KINEMATICS, MAX_BLEND_ERROR_DEG, NAMES, angle_steps, blend,
-                              check_name, euler_zxz, tilt_deg)
+from ncopt.kinematics import KINEMATICS, NAMES, blend, check_name, euler_zxz, tilt_deg
 
 ANGLE = st.floats(-360, 360, allow_nan=False)
 
@@ -146,25 +145,6 @@ def test_blend_runs_on_the_great_circle(v, f):
     assert abs(np.dot(m, np.cross(e0, e1))) < 1e-9  # in the plane of both
     assert np.allclose(blend(e0[None], e1[None], np.array([0.0]))[0], e0)
     assert np.allclose(blend(e0[None], e1[None], np.array([1.0]))[0], e1)
-
-
-@pytest.mark.parametrize("name", sorted(KINEMATICS))
-@given(a0=st.lists(st.floats(-120, 120), min_size=3, max_size=3),
-       turn=st.lists(st.floats(-40, 40), min_size=3, max_size=3))
-def test_pieces_keep_the_blend_within_its_bound(name, a0, turn):
-    """A block turning its angles linearly, cut into angle_steps pieces: at every point of
-    a piece, the blend of the piece's end vectors is within MAX_BLEND_ERROR_DEG of the
-    axis the angles give."""
-    kin = KINEMATICS[name]
-    a0, a1 = np.array(a0), np.array(a0) + np.array(turn)
-    k = int(angle_steps(a0[None], a1[None])[0])
-    ends = kin.tool_axis(a0 + (a1 - a0) * (np.arange(k + 1) / k)[:, None])
-    f = np.linspace(0, 1, 9)
-    for p in range(k):
-        true = kin.tool_axis(a0 + (a1 - a0) * ((p + f) / k)[:, None])
-        got = blend(np.repeat(ends[p:p + 1], 9, 0), np.repeat(ends[p + 1:p + 2], 9, 0), f)
-        err = np.degrees(np.arccos(np.clip(np.sum(true * got, axis=1), -1, 1)))
-        assert err.max() <= MAX_BLEND_ERROR_DEG
 
 
 def test_tilt_and_g68_2_frame():

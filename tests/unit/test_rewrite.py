@@ -273,8 +273,13 @@ def test_inch_program_gets_inch_feeds(mb, bowl_index):
 
 
 def test_rewrite_twice_is_stable(mb, bowl_index):
-    out, _ = _checked(wall_program(mb, tape=True), bowl_index)
-    assert rewrite_text(out, JOB, "wall.nc", bowl_index).text == out
+    """A stamped output rewritten again is the same: the stamp keeps what the program's
+    words no longer tell (the operation's own S and cutting feed, which blocks were
+    planned).  Without a stamp a second run re-plans from the rewritten S and F."""
+    job = replace(JOB, stamp=True)
+    out = rewrite_text(wall_program(mb, tape=True), job, "wall.nc", bowl_index).text
+    assert out != wall_program(mb, tape=True)
+    assert rewrite_text(out, job, "wall.nc", bowl_index).text == out
 
 
 # ------------------------------------------------------------------ the stamp ----

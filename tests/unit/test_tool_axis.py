@@ -91,6 +91,6 @@ def test_a_tilted_bull_nose_is_left_untouched():
     job = Job(machine=Machine(227, 18000), cutter=BULL, cutting=CuttingData(150, 0.08))
     with pytest.raises(NothingToPlan) as info:
         rewrite_text(text, job, "t.nc")
-    assert str(info.value) == ("t.nc: nothing to plan (the tool (the program names none): a "
-                               "bull-nose with a tilted tool axis: ncopt plans 5-axis moves "
-                               "with ball-end mills only)")
+    assert str(info.value) == ("t.nc: nothing to plan: the program (lines 1-10): a bull-nose "
+                               "with a tilted tool axis: ncopt plans 5-axis moves with "
+                               "ball-end mills only")
