@@ -21,43 +21,98 @@ import numpy as np
 
 from .errors import NcParseError, UsageError
 from .model import Program
+from .refuse import caret_context
 
 SINUMERIK, FANUC, LINUXCNC, GRBL, HEIDENHAIN, GENERIC = (
     "sinumerik", "fanuc", "linuxcnc", "grbl", "heidenhain-iso", "generic")
 DIALECTS = (SINUMERIK, FANUC, HEIDENHAIN, LINUXCNC, GRBL, GENERIC)
 
+class Mark(NamedTuple):
+    """A construct that tells a control: ``only`` when no other dialect reads it."""
+
+    name: str
+    pattern: str
+    only: bool
+
+
 _MARKS = {
-    SINUMERIK: [r"^%_N_\w+_(?:MPF|SPF)", r"\bCYCLE8\d\d\s*\(", r"\bG64[12]\b", r"\bT\s*=\s*\"",
-                r"^\s*(?:N\d+\s*)?DEF\s+(?:REAL|INT|BOOL)", r"\bTRAORI\b|\bTRAFOOF\b",
-                r"\bMSG\s*\(", r"^\s*(?:N\d+\s*)?R\d+\s*=", r"\bS1\s*=",
-                r"^\s*(?:N\d+\s+)?T\d+\s+D\d+\s*$"],
-    FANUC: [r"^\s*O\d{3,5}\b", r"\bG43\s*H\d+|\bG43\s*Z[-\d.]+\s*H\d+", r"\bG28\s*G91|\bG91\s*G28",
-            r"\bG0?5\.1\b", r"^\s*#\d+\s*=", r"\bIF\s*\[.*\]\s*GOTO", r"\bM98\s*P", r"\bG65\s*P"],
-    LINUXCNC: [r"^\s*[oO]\s*(?:\d+|<[^>]+>)\s+(?:sub|call|if|while|do|repeat)\b",
-               r"#<[^>]+>", r"\bG64\s*P", r"\(\s*(?:MSG|DEBUG|PRINT)\s*,", r"^\s*(?:N\d+\s*)?M2\s*$"],
-    GRBL: [r"^\s*\$[A-Z]", r"\bgrbl\b", r"\bM[67]\b.*laser|\blaser\b.*\bM[34]\b", r"\$H\b"],
-    HEIDENHAIN: [r"^\s*%\w+\s+G7[01]\s*\*", r"\*\s*$", r"\bN\d+\s+G9[89]\b"],
+    SINUMERIK: [
+        Mark("%_N_NAME_MPF header", r"^%_N_\w+_(?:MPF|SPF)", True),
+        Mark("CYCLE8xx( call", r"\bCYCLE8\d\d\s*\(", True),
+        Mark("G641/G642 continuous path", r"\bG64[12]\b", True),
+        Mark('T="NAME" tool call', r"\bT\s*=\s*\"", True),
+        Mark("DEF REAL/INT/BOOL", r"^\s*(?:N\d+\s*)?DEF\s+(?:REAL|INT|BOOL)", True),
+        Mark("TRAORI/TRAFOOF", r"\bTRAORI\b|\bTRAFOOF\b", True),
+        Mark("MSG( message", r"\bMSG\s*\(", True),
+        Mark("R1= parameter", r"^\s*(?:N\d+\s*)?R\d+\s*=", True),
+        Mark("S1= spindle speed", r"\bS1\s*=", True),
+        Mark("T1 D1 block", r"^\s*(?:N\d+\s+)?T\d+\s+D\d+\s*$", False),
+    ],
+    FANUC: [
+        Mark("O1234 program number", r"^\s*O\d{3,5}\b", False),  # LinuxCNC reads them too
+        Mark("G43 H length offset", r"\bG43\s*H\d+|\bG43\s*Z[-\d.]+\s*H\d+", False),
+        Mark("G28 G91 return", r"\bG28\s*G91|\bG91\s*G28", False),
+        Mark("G05.1 AI contour", r"\bG0?5\.1\b", True),
+        Mark("#100= macro variable", r"^\s*#\d+\s*=", False),  # LinuxCNC's too
+        Mark("IF[..]GOTO", r"\bIF\s*\[.*\]\s*GOTO", True),
+        Mark("M98 P subprogram call", r"\bM98\s*P", False),  # LinuxCNC 2.9 reads M98
+        Mark("G65 P macro call", r"\bG65\s*P", True),
+    ],
+    LINUXCNC: [
+        Mark("o-word sub/call/if",
+             r"^\s*[oO]\s*(?:\d+|<[^>]+>)\s+(?:sub|call|if|while|do|repeat)\b", True),
+        Mark("#<named> parameter", r"#<[^>]+>", True),
+        Mark("G64 P path tolerance", r"\bG64\s*P", True),
+        Mark("(MSG, / (DEBUG, / (PRINT, comment", r"\(\s*(?:MSG|DEBUG|PRINT)\s*,", True),
+        Mark("M2 end", r"^\s*(?:N\d+\s*)?M2\s*$", False),
+    ],
+    GRBL: [
+        Mark("$ system command", r"^\s*\$[A-Z]", True),
+        Mark("'grbl' in a comment", r"\bgrbl\b", False),
+        Mark("laser mode M3/M4", r"\bM[67]\b.*laser|\blaser\b.*\bM[34]\b", False),
+        Mark("$H homing", r"\$H\b", True),
+    ],
+    HEIDENHAIN: [
+        Mark("%NAME G71 * header", r"^\s*%\w+\s+G7[01]\s*\*", True),
+        Mark("* block end", r"\*\s*$", True),
+        Mark("N.. G98/G99 label", r"\bN\d+\s+G9[89]\b", False),
+    ],
 }
-_COMPILED = {k: [re.compile(p, re.I | re.M) for p in v] for k, v in _MARKS.items()}
+# what a dialect cannot read at all: a ';' comment with text is no Fanuc end of block
+# (a ';' inside ( ) is comment text: "(MACHINE; TOYODA)")
+_EXCLUDED_BY = {FANUC: re.compile(r"^(?:[^(;\n]|\([^)\n]*\))*;[ \t]*[^\s;]", re.M)}
+_COMPILED = {k: [re.compile(m.pattern, re.I | re.M) for m in v] for k, v in _MARKS.items()}
 _SAMPLE_CHARS = 400_000  # headers and the first blocks tell; no need to scan 30 MB
 
 
 @dataclass(frozen=True)
 class Detected:
-    """The dialect and the marks that decided it."""
+    """The dialect and the marks that decided it (their names, see :class:`Mark`)."""
 
     name: str
     marks: tuple[str, ...]
 
 
 def detect(text: str) -> Detected:
-    """Guess the control dialect of a program."""
+    """Guess the control dialect of a program from the marks of each dialect.
+
+    A mark only one dialect has (``G64 P`` of LinuxCNC, ``IF[..]GOTO`` of
+    Fanuc) counts before any mark several share (``G43 H``, which LinuxCNC
+    reads as well as Fanuc): the dialect with the most marks of its own wins,
+    then the one with the most marks, then the first in :data:`DIALECTS`.  A
+    dialect that cannot read something in the program (Fanuc and a ``;``
+    comment) is not chosen.  No mark: generic.
+    """
     sample = text[:_SAMPLE_CHARS] + "\n" + text[-20_000:]
-    best, best_marks = GENERIC, ()
+    best, best_score, best_marks = GENERIC, (0, 0), ()
     for name in DIALECTS[:-1]:
-        found = tuple(_MARKS[name][i] for i, rx in enumerate(_COMPILED[name]) if rx.search(sample))
-        if len(found) > len(best_marks):
-            best, best_marks = name, found
+        excluded = _EXCLUDED_BY.get(name)
+        if excluded is not None and excluded.search(sample):
+            continue
+        found = [m for m, rx in zip(_MARKS[name], _COMPILED[name]) if rx.search(sample)]
+        score = (sum(m.only for m in found), len(found))
+        if score > best_score:
+            best, best_score, best_marks = name, score, tuple(m.name for m in found)
     return Detected(best, best_marks)
 
 
@@ -180,8 +235,7 @@ def resolve_decimal_point(program: Program, dialect: str | None,
     check_convention_applies(dialect, convention, program.path)
     issue = decimal_point_issue(program, dialect, convention)
     if issue is not None:
-        src = program.line_text(issue.line - 1)
-        context = f"    {src.expandtabs(1)}\n    {' ' * (issue.column - 1)}^"
+        context = caret_context(program.line_text(issue.line - 1), issue.column)
         raise NcParseError(issue.message, path=program.path, line=issue.line,
                            column=issue.column, context=context)
     return program if convention is None else apply_decimal_point(program, convention)

@@ -2,16 +2,18 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .dialect import apply_decimal_point, check_convention_applies, decimal_point_issue, detect
+from .dialect import (HEIDENHAIN, SINUMERIK, apply_decimal_point,
+                      check_convention_applies, decimal_point_issue, detect)
 from .interp import interpret
 from .kinematics import tilt_deg
-from .model import LineKind, Motion
+from .model import LineKind, Motion, Program
 from .parse import parse_text
-from .tooltable import tool_table
+from .tooltable import ToolInfo, tool_table
 
 
 @dataclass(frozen=True)
@@ -29,7 +31,9 @@ class Inspection:
     rapids: int
     arcs: int
     unknown_moves: int
-    tools: tuple  # (T, kind, diameter, corner radius, line) from the comments
+    # (T, kind, diameter, corner radius or None, line, teeth or None, teeth line or None,
+    # unit or None: the program's, source) from the comments
+    tools: tuple
     tools_used: tuple  # T numbers with feed moves
     opaque: tuple  # (line, construct) left alone
     warnings: tuple
@@ -80,12 +84,11 @@ def inspect_text(text: str, path: str = "<input>", *, dialect: str | None = None
         moves=int(np.unique(tp.line[1:]).size), feed_moves=int(np.unique(tp.line[1:][feed]).size),
         rapids=int(np.unique(tp.line[1:][motion == Motion.RAPID]).size),
         arcs=int(lines_with_arcs.size), unknown_moves=int(np.unique(tp.line[1:][~known]).size),
-        tools=tuple((t.number, t.kind, t.diameter, t.corner_radius, t.line)
-                    for t in table.values()),
+        tools=tuple(_tool_row(t) for t in table.values()),
         tools_used=tuple(int(t) for t in np.unique(tp.tool[1:][feed])),
         opaque=tuple((i + 1, why) for i, why in sorted(prog.opaque_reason.items())),
         warnings=((f"{path}:{issue.line}:{issue.column}: {issue.message}",) if issue else ())
-        + tuple(tp.warnings),
+        + _notes(prog, dialect or found.name, table) + tuple(tp.warnings),
         s_range_rpm=(float(s_on.min()), float(s_on.max())) if s_on.size else (0.0, 0.0),
         f_range_mm_min=(float(f_vals.min()), float(f_vals.max())) if f_vals.size else (0.0, 0.0),
         cut_length_mm=float(length[cut].sum()),
@@ -109,7 +112,7 @@ def render_inspection(info: Inspection, out) -> None:
     say(f"  blocks {info.blocks}, moves {info.moves} (feed {info.feed_moves}, rapid "
         f"{info.rapids}, arcs {info.arcs}), not plannable {info.unknown_moves}")
     for t in info.tools:
-        say(f"  tool {_name(t[0])}: {t[1]} D{t[2]:g} r{t[3]:g} (line {t[4]})")
+        say(f"  tool {_name(t[0])}: {_describe_tool(t, info.units)}")
     say(f"  tools cutting: {', '.join(_name(t) for t in info.tools_used) or 'none'}")
     say(f"  S {info.s_range_rpm[0]:g}..{info.s_range_rpm[1]:g} RPM, "
         f"F {info.f_range_mm_min[0]:g}..{info.f_range_mm_min[1]:g} mm/min")
@@ -134,3 +137,71 @@ def _axes_from(kinematics: str) -> str:
 
 def _name(tool: int) -> str:
     return f"T{tool}" if tool >= 0 else "a tool with no T number"
+
+
+def _tool_row(t: ToolInfo) -> tuple:
+    corner = None if np.isnan(t.corner_radius) else t.corner_radius
+    return (t.number, t.kind, t.diameter, corner, t.line, t.teeth, t.teeth_line, t.unit,
+            t.source)
+
+
+def _describe_tool(row: tuple, program_units: str) -> str:
+    """``ball D16 r8 mm, 2 teeth (line 4, Fusion 360)``."""
+    number, kind, diameter, corner, line, teeth, teeth_line, unit, source = row
+    size = f"D{diameter:g}" + ("" if corner is None else f" r{corner:g}")
+    where = f"line {line}" + ("" if teeth is None or teeth_line == line
+                              else f", teeth line {teeth_line}")
+    count = "teeth not given" if teeth is None else f"{teeth} teeth"
+    del number
+    return f"{kind} {size} {unit or program_units}, {count} ({where}, {source})"
+
+
+def _units_note(g: np.ndarray, dialect: str) -> str:
+    """What the owner should know about the units the program states (G values ``g``)."""
+    if np.isin(g, (20.0, 21.0)).any():
+        return ""
+    if dialect in (SINUMERIK, HEIDENHAIN):  # G70/G700 inch, G71/G710 metric there
+        inch = [c for c in (70.0, 700.0) if np.any(g == c)]
+        if inch:
+            return (f"G{inch[0]:g} selects inch on this control, but ncopt reads units from "
+                    "G20/G21 only and reads this program in mm: do not rewrite it until it "
+                    "says G20")
+        if np.isin(g, (71.0, 710.0)).any():
+            return ""
+    return ("no G20/G21 in the program: ncopt reads it in mm, as a control does that starts "
+            "in metric; add G21 (or G20) to say which")
+
+
+_MM_SIZE = re.compile(r"(\d+(?:\.\d*)?)\s*MM\b", re.I)
+
+
+def _unit_clash(table: dict, inch: bool) -> str:
+    """``line: ...`` where a tool comment's own mm size shows its sizes are in the other unit."""
+    for t in table.values():
+        if t.unit is not None:
+            continue
+        for m in _MM_SIZE.finditer(t.text):
+            mm = float(m.group(1))
+            other = t.diameter * 25.4 if not inch else t.diameter / 25.4
+            if mm > 0 and abs(other - mm) <= 0.01 * mm and abs(t.diameter - mm) > 0.01 * mm:
+                units = ("inch", "mm") if not inch else ("mm", "inch")
+                return (f"{t.line}: the tool comment gives D{t.diameter:g} for "
+                        f"`{m.group(0)}`: its sizes are in {units[0]}, but the program is "
+                        f"read in {units[1]}; check G20/G21")
+    return ""
+
+
+def _notes(prog: Program, dialect: str, table: dict) -> tuple[str, ...]:
+    """What the program's owner should know before ncopt changes anything."""
+    notes = []
+    g = prog.word_value[prog.word_letter == ord("G")]
+    note = _units_note(g, dialect)
+    if note and prog.n_words:
+        notes.append(f"{prog.path}: {note}")
+    if prog.n_words and not np.any(prog.word_letter == ord("S")):
+        notes.append(f"{prog.path}: no S word: the program never sets a spindle speed (shown "
+                     "as S 0 below)")
+    clash = _unit_clash(table, inch=bool(np.any(g == 20.0)))
+    if clash:
+        notes.append(f"{prog.path}:{clash}")
+    return tuple(notes)

@@ -24,6 +24,7 @@ from .expr import Params, Unknown
 from .feedmode import G93, G95, tip_feed_mm_min
 from .model import LineKind, LineState, Program, Toolpath
 from .orientation import Orientation, read_orientation, with_tool_axis
+from .refuse import MIN_ARC_RADIUS_MM, check_arc_centres, check_signs, check_words
 
 MM_PER_INCH = 25.4
 
@@ -245,6 +246,8 @@ def _executed_lines(prog: Program, lines: _LineTable, warnings: list) -> np.ndar
 
 def _check_semantics(prog: Program, lines: _LineTable, executed: np.ndarray) -> None:
     """Errors a control would raise (the LinuxCNC interpreter's own checks)."""
+    check_words(prog, lines.has_g({650, 660}))
+    check_signs(prog, lines, executed)
     # G80 beside a motion code is accepted by Mach3/Fanuc posts (N100G00G21G17G90G40G49G80)
     groups = [G_MOTION - {800}, G_NON_MODAL_MOVE | {40}, G_PLANE, G_DISTANCE, G_UNITS,
               G_FEED_MODE, G_COMP]
@@ -276,6 +279,9 @@ def _check_semantics(prog: Program, lines: _LineTable, executed: np.ndarray) -> 
     if (arc & no_centre).any():
         _fail(prog, np.flatnonzero(arc & no_centre)[0],
               "arc with none of I, J, K or R; give the centre or the radius")
+    check_arc_centres(prog, lines, arc, plane=ffill(lines.g_group(G_PLANE), 170.0),
+                      incremental=ffill(lines.g_group(G_ARC_DISTANCE), 911.0) == 911.0,
+                      inch=ffill(lines.g_group(G_UNITS), 210.0) == 200.0)
     _check_comp_exit(prog, lines, motion, executed)
     both = lines.present("R") & lines.has_g({640}) & lines.has_m({19})
     if both.any():
@@ -564,6 +570,10 @@ def _arc_points(prog, lines, modal, i, p0, p1, tol_mm):
     u0, v0 = p0[a] - center[a], p0[b] - center[b]
     u1, v1 = p1[a] - center[a], p1[b] - center[b]
     r0, r1 = math.hypot(u0, v0), math.hypot(u1, v1)
+    if min(r0, r1) < MIN_ARC_RADIUS_MM * (1.0 - 1e-9):
+        where = "start" if r0 < r1 else "end"
+        _fail(prog, i, f"zero-radius arc: the centre is on the {where} point (radius "
+              f"{min(r0, r1):.4f} mm); correct I, J, K (LinuxCNC refuses it: \"Zero-radius arc\")")
     # LinuxCNC's tolerance: 2*0.01 mm*sqrt2 (2*0.001 inch*sqrt2) and 0.1 % relative
     t_abs = 2 * math.sqrt(2) * (0.001 * MM_PER_INCH if modal.inch[i] else 0.01)
     err = abs(r0 - r1)

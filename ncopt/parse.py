@@ -12,6 +12,9 @@ every corpus line and on generated lines, for every grammar.
 
 A line one dialect's grammar refuses but another reads (``R1=5`` under
 ``fanuc``) gives an error that names the construct and the dialects that read it.
+What no grammar should be asked to read (UTF-16 files, a byte order mark,
+CR-only line ends, Heidenhain conversational programs) is refused first by
+:func:`ncopt.refuse.check_text`.
 """
 
 from __future__ import annotations
@@ -27,7 +30,11 @@ from lark.exceptions import UnexpectedInput
 from .dialect import DIALECTS, FANUC, GENERIC, GRBL
 from .errors import NcParseError, UsageError
 from .model import VECTOR_WORD_CODES, LineKind, Program
+from .refuse import caret_context, check_text, klartext_what, looks_like_klartext
 from .threads import available_cpus, map_in_threads
+
+__all__ = ["caret_context", "grammar_path", "dialect_name", "parser", "byte_classes",
+           "parse_text", "read_program"]
 
 # byte classes of the fast path
 _SPACE, _LETTER, _DIGIT, _SIGN, _POINT, _NL, _OTHER = range(7)
@@ -95,6 +102,8 @@ def byte_classes(dialect: str | None = None) -> np.ndarray:
 
 
 _TAPE_MARK = re.compile(r"(?m)^[ \t]*(?:[Nn][0-9.]*[ \t]*)?%")
+# what may stand before the opening '%': blanks and a tape leader (NULs, DELs)
+_LEADER = re.compile(r"[\s\x00-\x08\x0e-\x1f\x7f]*")
 
 
 def _trailer_start(text: str, line_start: np.ndarray) -> int:
@@ -109,7 +118,7 @@ def _trailer_start(text: str, line_start: np.ndarray) -> int:
         pos = text.find("%", pos + 1)
     if not marks:
         return line_start.shape[0] - 1
-    opening = text[: marks[0]].strip() == ""
+    opening = _LEADER.fullmatch(text, 0, marks[0]) is not None
     closing = marks[1] if opening and len(marks) == 2 else (None if opening else marks[0])
     if closing is None:
         return line_start.shape[0] - 1
@@ -139,12 +148,15 @@ def parse_text(text: str, path: str = "<input>", *, dialect: str | None = None,
     Raises
     ------
     NcParseError
-        For the first malformed line, with line, column and a caret context.
+        For the first malformed line, with line, column and a caret context;
+        for a file no grammar reads (see :func:`ncopt.refuse.check_text`).
     UsageError
         For an unknown dialect name.
     """
     name = dialect_name(dialect)
-    raw = np.frombuffer(text.encode("latin-1"), dtype=np.uint8)
+    data = text.encode("latin-1")
+    check_text(data, text, path)
+    raw = np.frombuffer(data, dtype=np.uint8)
     if raw.shape[0] == 0:
         return _empty(path, text)
     line_start, content_end = _split_lines(raw)
@@ -421,20 +433,27 @@ def _word_record(node: Tree, offset: int, line_no: int) -> tuple:
 def _describe(exc: UnexpectedInput, src: str, name: str) -> str:
     col = (getattr(exc, "column", 1) or 1) - 1
     ch = src[col] if 0 <= col < len(src) else ""
+    if looks_like_klartext(src):
+        return f"the line is a block of {klartext_what()}"
     if "(" in src and src.count("(") != src.count(")"):
         return "unbalanced comment parentheses; close every '(' with ')' on the same line"
+    inner = src.find("(", col + 1)
+    if ch == "(" and 0 <= inner < src.find(")", col + 1):
+        return ("a comment inside a comment: controls do not nest parentheses (LinuxCNC: "
+                "\"Nested comment found\"); remove the inner ( )")
+    if ch == "\r":
+        return ("a carriage return (CR) inside the line: the file mixes line ends (CR alone, "
+                "or CR CR LF); save it with LF or CR LF line ends")
+    if src.startswith("\xef\xbb\xbf", col):
+        return ("a UTF-8 byte order mark inside the file (files joined together?); delete "
+                "the three bytes EF BB BF")
     if ch:
         after = " or after ;" if any(t.name == "EOL_COMMENT" for t in _parser(name).terminals) \
             else ""
-        return (f"unexpected {ch!r}; expected a word such as X1.5, a comment in ( ){after}, "
+        what = repr(ch) if " " <= ch <= "~" else f"byte 0x{ord(ch):02X}"
+        return (f"unexpected {what}; expected a word such as X1.5, a comment in ( ){after}, "
                 "or fix the line")
     return "line ends in the middle of a word or expression; complete or remove it"
-
-
-def caret_context(src: str, col: int) -> str:
-    """The line and a caret under 1-based column ``col`` (a tab is one column)."""
-    shown = src.expandtabs(1)
-    return f"    {shown}\n    {' ' * max(col - 1, 0)}^"
 
 
 # ------------------------------------------------ constructs of other dialects ----

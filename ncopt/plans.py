@@ -411,7 +411,7 @@ def choose_cutter(job, table: dict, tool: int, n_tools: int, inch: bool,
     if job.cutter is not None:
         if info is not None and info.kind not in (BALL, BULL) and not job.shape_named:
             return ToolChoice(None, "", (
-                f"the program describes {named} as {_kind_text(info)} ({info.text.strip()}, "
+                f"the program describes {named} as {info.refusal()} ({info.text.strip()}, "
                 f"line {info.line}); --diameter does not say the shape: pass --shape ball "
                 "or --corner-radius if that comment is wrong"))
         return ToolChoice(job.cutter, "options")
@@ -425,14 +425,14 @@ def choose_cutter(job, table: dict, tool: int, n_tools: int, inch: bool,
         return ToolChoice(None, "", "no diameter known from the program's comments: give "
                           "--diameter (and --corner-radius for a bull-nose)")
     if info.kind not in (BALL, BULL):
-        return ToolChoice(None, "", f"{_kind_text(info)} ({info.text.strip()}); ncopt plans "
+        return ToolChoice(None, "", f"{info.refusal()} ({info.text.strip()}); ncopt plans "
                           "ball and bull-nose cutters only")
     scale = MM_PER_INCH if inch else 1.0
-    return ToolChoice(info.cutter(job.teeth, scale), f"line {info.line}: ({info.text.strip()})")
-
-
-def _kind_text(info) -> str:
-    return "a flat end mill" if info.kind == "flat" else "not a ball or bull-nose"
+    teeth = info.teeth or job.teeth
+    said = (f"teeth from line {info.teeth_line}" if info.teeth is not None
+            else f"{teeth} teeth assumed")
+    return ToolChoice(info.cutter(teeth, scale),
+                      f"line {info.line}: ({info.text.strip()}); {said}")
 
 
 def plan_program(prog: Program, tp: Toolpath, idx: planner.BlockIndex, job,

@@ -1,15 +1,28 @@
-"""Cutters read from the tool header comments that CAM posts write.
+"""Cutters read from the tool comments that CAM posts write.
 
-Recognised (case-insensitive), in a comment anywhere in the program:
+:mod:`ncopt.toolcomments` reads one comment (Fusion 360, OpenBuilds, BlenderCAM,
+FreeCAD, Carbide Create, Estlcam, Mastercam, hyperMILL, SolidCAM, Vectric, free
+text); here the comments of a program become its tools:
 
-* Fusion 360 / Autodesk posts: ``(T1 D=8 CR=4 - ZMIN=-19.999 - ball end mill)``
-* Mastercam-style: ``(TOOL - 3 DIA. OFF. - 3 LEN. - 3 DIA. - 10.)`` plus a type word
-* free text naming a T number, a diameter and a type: ``( T1 = Ball Mill 4 mm )``,
-  ``(T4 BALL D16 R8)``, ``M6 T7 (TOOL DIA. 4)``
+* Comments on consecutive comment-only lines that a CAM writes as parts of one
+  description, and that do not contradict each other, are one description
+  (FreeCAD writes ``(Tool type: endmill)`` and ``(Compensated Tool Path.
+  Diameter: 3.0)``); free text stands alone.  ncopt's own stamp is no tool
+  comment (its sizes are mm in every program; the planner reads it).
+* A description naming a T number belongs to that tool.  One without a number
+  belongs to the tool change on its own line, else to the next tool change
+  with no move between them (Carbide Create writes ``(TOOL/MILL,...)`` just
+  before ``M6 T121``), else to the previous one with no move between them
+  (BlenderCAM writes ``T1 M06`` then its comment).  When the program has M6
+  words, a tool change is an M6 block (a T word alone preselects the next
+  tool); otherwise a T word.
+* Descriptions bound to no tool change serve a program that never names a
+  tool, if they all agree (``UNNUMBERED``); several different ones cannot be
+  told apart and serve nothing.
 
-A tool is usable by ncopt when it is a ball or a bull-nose (corner radius
-between 0 and D/2).  Flat end mills, drills, chamfer and engraving tools are
-reported and their sections left untouched.
+A tool is usable by ncopt when it is a ball or a bull-nose whose corner radius
+is known.  Flat end mills, drills, chamfer and engraving tools, shapes the
+comment does not give, are reported and their sections left untouched.
 """
 
 from __future__ import annotations
@@ -19,90 +32,158 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .model import Cutter, Program
+from .model import Cutter, LineKind, Program
+from .toolcomments import (BALL, BULL, BULL_NO_RADIUS, FLAT, OTHER, UNKNOWN, Fact,
+                           may_describe_a_tool, read_comment, shape)
 
-BALL, BULL, FLAT, OTHER = "ball", "bull-nose", "flat", "other"
+__all__ = ["BALL", "BULL", "BULL_NO_RADIUS", "FLAT", "OTHER", "UNKNOWN", "UNNUMBERED",
+           "ToolInfo", "parse_tool_comment", "tool_comments", "tool_table", "cutter_for"]
+
 UNNUMBERED = -1  # "( Cutter is assumed to be a 10mm ball nose )": no T number given
-
-_FUSION = re.compile(r"T(\d+)\s+D=([\d.]+)\s+CR=([\d.]+)[^)]*?-\s*([^-)]*?)\s*\)?$", re.I)
-_T_NUMBER = re.compile(r"\bT\s*=?\s*(\d+)\b|\bTOOL\s*(?:-|#|NO\.?|:)?\s*(\d+)\b", re.I)
-_DIAMETER = re.compile(r"(?:\bD\s*=?\s*|DIA(?:METER)?\.?\s*(?:-|=|:)?\s*)([\d]*\.?\d+)", re.I)
-_DIAMETER_MM = re.compile(r"\b([\d]*\.?\d+)\s*mm\b", re.I)
-_CORNER = re.compile(r"\b(?:CR|R|CORNER\s*RAD(?:IUS)?)\s*=?\s*([\d]*\.?\d+)", re.I)
+MM_PER_INCH = 25.4
 
 
 @dataclass(frozen=True)
 class ToolInfo:
-    """One tool as the program's header describes it (lengths in program units)."""
+    """One tool as the program's comments describe it.
+
+    Attributes
+    ----------
+    number : int
+        T number, or :data:`UNNUMBERED`.
+    kind : str
+        BALL, BULL, FLAT, OTHER, UNKNOWN (the comment gives no shape) or
+        BULL_NO_RADIUS.
+    diameter, corner_radius : float
+        In ``unit``; ``corner_radius`` is NaN where not known.
+    line : int
+        1-based line of the comment that gives the diameter.
+    text : str
+        That comment's text.
+    teeth : int or None
+        Number of teeth the comments give; None: not given (the caller assumes
+        a number and must say so).
+    teeth_line : int or None
+        1-based line of the comment that gives ``teeth``.
+    unit : str or None
+        "mm" or "inch" where the comment says so (``6 mm``, ``1/4"``, a
+        fraction); None: the program's units.
+    source : str
+        Which format read it: "Fusion 360", "Mastercam", ..., "free text".
+    """
 
     number: int
     kind: str
     diameter: float
     corner_radius: float
-    line: int  # 1-based line of the comment
+    line: int
     text: str
+    teeth: int | None = None
+    teeth_line: int | None = None
+    unit: str | None = None
+    source: str = "free text"
 
     def cutter(self, teeth: int, scale_to_mm: float = 1.0, tool_point: str = "tip") -> Cutter:
-        return Cutter(self.diameter * scale_to_mm, teeth, self.corner_radius * scale_to_mm,
-                      tool_point)
+        """The cutter in mm; ``scale_to_mm`` converts the program's units (used when
+        the comment states no unit of its own)."""
+        scale = {"mm": 1.0, "inch": MM_PER_INCH}.get(self.unit, scale_to_mm)
+        return Cutter(self.diameter * scale, teeth, self.corner_radius * scale, tool_point)
+
+    def teeth_source(self) -> str:
+        """Where the tooth count comes from: ``line N`` or ``assumed``."""
+        return f"line {self.teeth_line}" if self.teeth is not None else "assumed"
+
+    def refusal(self) -> str:
+        """Why ncopt does not plan this tool (for a kind other than BALL and BULL)."""
+        return {FLAT: "a flat end mill",
+                UNKNOWN: "a tool whose shape the comment does not give",
+                BULL_NO_RADIUS: "a bull-nose whose corner radius the comment does not give",
+                }.get(self.kind, "not a ball or bull-nose")
 
 
-def _kind(text: str, diameter: float, corner: float | None) -> str:
-    low = text.lower()
-    if any(w in low for w in ("drill", "chamfer", "engrav", "v-bit", "vee", "spot", "tap",
-                               "thread", "face mill", "slot")):
-        return OTHER
-    if "ball" in low or "sphere" in low or (corner is not None and abs(2 * corner - diameter) < 1e-9):
-        return BALL
-    if any(w in low for w in ("bull", "toroid", "torus", "radius mill")) or (
-            corner is not None and 0 < corner < diameter / 2):
-        return BULL
-    if corner == 0 or "flat" in low or "end mill" in low or "endmill" in low:
-        return FLAT
-    return OTHER
+@dataclass(frozen=True)
+class _Described:
+    """A description before binding: the merged fact and its lines (0-based)."""
+
+    fact: Fact
+    first: int
+    last: int
+    size_line: int
+    text: str
+    teeth_line: int | None
 
 
 def parse_tool_comment(text: str, line: int) -> ToolInfo | None:
-    """A ToolInfo from one comment's text, or None if it does not describe a tool."""
-    m = _FUSION.search(text)
-    if m:
-        d, cr = float(m.group(2)), float(m.group(3))
-        return ToolInfo(int(m.group(1)), _kind(m.group(4), d, cr), d, cr, line, text)
-    t = _T_NUMBER.search(text)
-    dm = _DIAMETER.search(text) or _DIAMETER_MM.search(text)
-    if not dm:
+    """A ToolInfo from one comment's text (1-based ``line``), or None if it is no tool."""
+    fact = read_comment(text)
+    if fact is None:
         return None
-    number = int(t.group(1) or t.group(2)) if t else UNNUMBERED
-    d = float(dm.group(1))
-    cm = _CORNER.search(text[dm.end():]) or _CORNER.search(text[:dm.start()])
-    cr = float(cm.group(1)) if cm else None
-    kind = _kind(text, d, cr)
-    if cr is None:
-        cr = d / 2 if kind == BALL else 0.0
-    return ToolInfo(number, kind, d, cr, line, text)
+    return _info(_Described(fact, line - 1, line - 1, line - 1, text,
+                            line - 1 if fact.teeth is not None else None), fact.number)
 
 
-_COMMENT = re.compile(r"\(([^()]*)\)|;(.*)$")
+def _info(desc: _Described, number: int | None) -> ToolInfo | None:
+    fact = desc.fact
+    if fact.diameter is None or fact.diameter <= 0:
+        return None
+    if fact.number is None and fact.kind_word is None and not fact.tool_word:
+        return None  # "(Xcen=0 Ycen=0 Dia=10)", "( X=96 mm, Y=120 mm )": no tool
+    kind, corner = shape(fact)
+    teeth_line = None if desc.teeth_line is None else desc.teeth_line + 1
+    return ToolInfo(UNNUMBERED if number is None else number, kind, fact.diameter,
+                    float("nan") if corner is None else corner, desc.size_line + 1, desc.text,
+                    fact.teeth, teeth_line, fact.unit, fact.source)
+
+
+_COMMENT_IN_TEXT = re.compile(r"\(([^()\r\n]*)\)|;([^\r\n]*)")
+# ncopt's own stamp (ncopt.stamp) names the cutter in mm whatever the program's units;
+# the planner reads it there, never as a tool comment
+_NCOPT_STAMP = re.compile(r"\s*ncopt \S+ T-?\d+ (?:lines=\d+-\d+ )?vc=")
+
+
+def tool_comments(prog: Program) -> list[ToolInfo]:
+    """Every tool the program's comments describe, in order, with its T number if known."""
+    return [info for info, _ in _bound_descriptions(prog)]
 
 
 def tool_table(prog: Program) -> dict[int, ToolInfo]:
-    """Tools described in the program's comments, by T number (first description wins)."""
-    raw = np.frombuffer(prog.text.encode("latin-1"), dtype=np.uint8)
-    marks = np.flatnonzero((raw == ord("(")) | (raw == ord(";")))
-    lines = np.unique(np.searchsorted(prog.line_start, marks, side="right") - 1)
-    table: dict[int, ToolInfo] = {}
-    for line in lines.tolist():
-        for c in _COMMENT.finditer(prog.line_text(line)):
-            body = c.group(1) if c.group(1) is not None else c.group(2)
-            if (body or "").lstrip().startswith("ncopt "):
-                continue  # ncopt's own stamp: nominal data in mm, not a tool description
-            info = parse_tool_comment(body or "", line + 1)
-            if info is None or info.number in table:
-                continue
-            if info.number == UNNUMBERED and info.kind not in (BALL, BULL):
-                continue  # "(Xcen=0 Ycen=0 Dia=10)" is not a tool
-            table[info.number] = info
-    return table
+    """Tools described in the program's comments, by T number.
+
+    A description naming its T number wins over one bound to a tool change by
+    its place, one on the tool change's own line over one before or after it;
+    among equals the first wins.  ``UNNUMBERED`` holds the descriptions bound
+    to no tool change when they all agree.
+    """
+    table: dict[int, tuple[ToolInfo, int]] = {}
+    loose: list[ToolInfo] = []
+    for info, rank in _bound_descriptions(prog):
+        if info.number == UNNUMBERED:
+            loose.append(info)
+        elif info.number not in table or rank < table[info.number][1]:
+            table[info.number] = (info, rank)
+    out = {number: info for number, (info, _) in table.items()}
+    agreed = _agreed(loose, _inch_program(prog))
+    if agreed is not None:
+        out[UNNUMBERED] = agreed
+    return out
+
+
+def _bound_descriptions(prog: Program) -> list[tuple[ToolInfo, int]]:
+    """(tool, rank) of every description: rank 0 names its T number, 1 is on the tool
+    change's line, 2 next to it, 3 bound to none."""
+    lines = _comment_lines(prog)
+    if not lines:
+        return []
+    events = _Events(prog)
+    out = []
+    for desc in _descriptions(prog, lines):
+        number, rank = desc.fact.number, 0
+        if number is None:
+            number, rank = events.tool_for(desc.first, desc.last)
+        info = _info(desc, number)
+        if info is not None:
+            out.append((info, rank))
+    return out
 
 
 def cutter_for(table: dict[int, ToolInfo], tool: int, n_tools: int) -> ToolInfo | None:
@@ -112,3 +193,149 @@ def cutter_for(table: dict[int, ToolInfo], tool: int, n_tools: int) -> ToolInfo 
     if n_tools <= 1 and UNNUMBERED in table:
         return table[UNNUMBERED]
     return None
+
+
+# ----------------------------------------------------------------- helpers ----
+def _comment_lines(prog: Program) -> list[tuple[int, list[str]]]:
+    """(0-based line, comment texts) of every line holding a comment that may describe a
+    tool (one pass of a regular expression over the text, then a quick test per comment)."""
+    text = prog.text
+    if "(" not in text and ";" not in text:
+        return []
+    found: list[tuple[int, str]] = []
+    for m in _COMMENT_IN_TEXT.finditer(text):
+        body = m.group(1) if m.group(1) is not None else m.group(2)
+        if body and may_describe_a_tool(body) and not _NCOPT_STAMP.match(body):
+            found.append((m.start(), body))
+    if not found:
+        return []
+    lines = np.searchsorted(prog.line_start, [pos for pos, _ in found], side="right") - 1
+    trailer = (prog.line_kind[np.minimum(lines, prog.n_lines - 1)] == LineKind.TRAILER).tolist()
+    out: list[tuple[int, list[str]]] = []
+    for line, (_, body), after_end in zip(lines.tolist(), found, trailer):
+        if line >= prog.n_lines or after_end:
+            continue
+        if out and out[-1][0] == line:
+            out[-1][1].append(body)
+        else:
+            out.append((line, [body]))
+    return out
+
+
+def _descriptions(prog: Program, lines) -> list[_Described]:
+    """Facts of the comments, merged over consecutive comment-only lines."""
+    only_comments = _comment_only(prog)
+    out: list[_Described] = []
+    current: _Described | None = None
+    for line, texts in lines:
+        for text in texts:
+            fact = read_comment(text)
+            if fact is None:
+                continue
+            here = _Described(fact, line, line, line, text,
+                              line if fact.teeth is not None else None)
+            joinable = (current is not None and _partial(fact) and _partial(current.fact)
+                        and only_comments[line] and only_comments[current.last]
+                        and line - current.last <= 1)
+            merged = current.fact.merged(fact) if joinable else None
+            if merged is None:
+                if current is not None:
+                    out.append(current)
+                current = here
+                continue
+            size_new = current.fact.diameter is None and fact.diameter is not None
+            current = _Described(merged, current.first, line,
+                                 line if size_new else current.size_line,
+                                 text if size_new else current.text,
+                                 current.teeth_line if current.teeth_line is not None
+                                 else here.teeth_line)
+    if current is not None:
+        out.append(current)
+    return out
+
+
+def _partial(fact: Fact) -> bool:
+    """A fact a CAM writes over several comments (FreeCAD's type and diameter lines);
+    free text and numbered descriptions stand alone."""
+    return fact.number is None and fact.source != "free text"
+
+
+def _comment_only(prog: Program) -> np.ndarray:
+    """(n_lines,) bool: the line holds no word but N (a comment line)."""
+    words = np.zeros(prog.n_lines, dtype=bool)
+    words[prog.word_line[prog.word_letter != ord("N")]] = True
+    return ~words & (prog.line_kind != LineKind.OPAQUE)
+
+
+class _Events:
+    """Tool changes and moves of a program, by line."""
+
+    def __init__(self, prog: Program) -> None:
+        letter, line, value = prog.word_letter, prog.word_line, prog.word_value
+        n = prog.n_lines
+        self.move = np.zeros(n, dtype=bool)
+        self.move[line[np.isin(letter, np.frombuffer(b"XYZABC", dtype=np.uint8))]] = True
+        t_value = np.full(n, np.nan)
+        t = letter == ord("T")
+        t_value[line[t]] = value[t]
+        m6 = np.zeros(n, dtype=bool)
+        m6[line[(letter == ord("M")) & (value == 6.0)]] = True
+        if m6.any():  # the tool in force at each M6: its T may stand on an earlier line
+            idx = np.where(np.isnan(t_value), -1, np.arange(n))
+            np.maximum.accumulate(idx, out=idx)
+            in_force = np.where(idx >= 0, t_value[np.maximum(idx, 0)], np.nan)
+            self.change = np.flatnonzero(m6 & ~np.isnan(in_force))
+            self.number = in_force[self.change]
+        else:
+            self.change = np.flatnonzero(~np.isnan(t_value))
+            self.number = t_value[self.change]
+        self.moves_before = np.cumsum(self.move)  # moves on lines 0..i
+
+    def tool_for(self, first: int, last: int) -> tuple[int | None, int]:
+        """(T number, rank) of the tool change a description on lines first..last
+        belongs to: rank 1 on its own lines, 2 next to it, (None, 3) none."""
+        if self.change.size == 0:
+            return None, 3
+        k = int(np.searchsorted(self.change, first))
+        if k < self.change.size and self.change[k] <= last:
+            return int(self.number[k]), 1
+        if k < self.change.size and not self._moves_between(last, int(self.change[k])):
+            return int(self.number[k]), 2
+        if k > 0 and not self._moves_between(int(self.change[k - 1]), first):
+            return int(self.number[k - 1]), 2
+        return None, 3
+
+    def _moves_between(self, a: int, b: int) -> bool:
+        """Whether a line strictly between a and b moves an axis."""
+        return b - a > 1 and self.moves_before[b - 1] - self.moves_before[a] > 0
+
+
+def _inch_program(prog: Program) -> bool:
+    g = prog.word_letter == ord("G")
+    return bool(np.any(prog.word_value[g] == 20.0))
+
+
+def _agreed(loose: list[ToolInfo], inch: bool) -> ToolInfo | None:
+    """One description for every loose one, if they agree; None if none or they differ.
+
+    Sizes compare in mm (a description without a unit is in the program's);
+    a shape or tooth count one of them does not give does not disagree.
+    """
+    if not loose:
+        return None
+    best = loose[0]
+    for other in loose[1:]:
+        if not np.isclose(_diameter_mm(other, inch), _diameter_mm(best, inch), rtol=1e-6):
+            return None
+        if UNKNOWN not in (best.kind, other.kind) and best.kind != other.kind:
+            return None
+        if None not in (best.teeth, other.teeth) and best.teeth != other.teeth:
+            return None
+        if best.kind == UNKNOWN and other.kind != UNKNOWN:
+            best = other  # a later one names the shape the first did not
+    return best
+
+
+def _diameter_mm(info: ToolInfo, inch: bool) -> float:
+    scale = {"mm": 1.0, "inch": MM_PER_INCH}.get(info.unit, MM_PER_INCH if inch else 1.0)
+    return info.diameter * scale

@@ -322,10 +322,12 @@ def test_inspect_the_sample_bowl():
         f"{BOWL_MPF}: sinumerik dialect (1 mark), mm, 21902 lines",
         f"  blocks {info['blocks']}, moves {info['moves']} (feed {info['feed_moves']}, rapid "
         f"{info['rapids']}, arcs 0), not plannable {info['unknown_moves']}",
-        "  tool T4: ball D16 r8 (line 4)",
+        "  tool T4: ball D16 r8 mm, 2 teeth (line 4, free text)",
         "  tools cutting: T4",
         "  S 1393..1393 RPM, F 279..279 mm/min",
         f"  cutting {info['cut_length_mm']:.0f} mm in 59.3 min at the programmed feed",
+        f"  warning: {BOWL_MPF}: no G20/G21 in the program: ncopt reads it in mm, as a control "
+        "does that starts in metric; add G21 (or G20) to say which",
     ]
 
 
@@ -341,7 +343,10 @@ def test_inspect_json():
     assert info["path"] == str(BOWL_MPF)
     assert (info["dialect"], info["units"], info["lines"]) == ("sinumerik", "mm", 21902)
     assert info["dialect_marks"]  # why the dialect was chosen
-    assert info["tools"] == [[4, "ball", 16.0, 8.0, 4]] and info["tools_used"] == [4]
+    # T, kind, D, r, line, teeth and their line ("z 2" in the comment), unit (None: the
+    # program's), which format read it
+    assert info["tools"] == [[4, "ball", 16.0, 8.0, 4, 2, 4, None, "free text"]]
+    assert info["tools_used"] == [4]
     assert info["s_range_rpm"] == [1393.0, 1393.0]
     assert info["f_range_mm_min"] == [279.0, 279.0]
     assert info["arcs"] == 0 and info["rapids"] == 2
@@ -355,10 +360,13 @@ def test_inspect_a_fusion_program():
     assert result.exit_code == Exit.OK, result.stderr
     lines = result.stdout.splitlines()
     assert lines[0] == f"{CHESS}: fanuc dialect (3 marks), mm, 35211 lines"
-    for tool in ("  tool T1: other D100 r0 (line 3)", "  tool T2: flat D5 r0 (line 4)",
-                 "  tool T3: ball D1.5 r0.75 (line 5)", "  tool T4: flat D10 r0 (line 6)",
-                 "  tool T9: flat D3 r0 (line 7)", "  tool T11: other D8 r0 (line 8)"):
-        assert tool in lines
+    for tool in ("T1: other D100 r0 mm, teeth not given (line 3,",
+                 "T2: flat D5 r0 mm, teeth not given (line 4,",
+                 "T3: ball D1.5 r0.75 mm, teeth not given (line 5,",
+                 "T4: flat D10 r0 mm, teeth not given (line 6,",
+                 "T9: flat D3 r0 mm, teeth not given (line 7,",
+                 "T11: other D8 r0 mm, teeth not given (line 8,"):
+        assert f"  tool {tool} Fusion 360)" in lines
     assert "  tools cutting: T1, T2, T3, T4, T9" in lines
     info = json.loads(invoke(["inspect", CHESS, "--json"]).stdout)
     assert info["arcs"] > 1000 and info["units"] == "mm" and info["dialect"] == "fanuc"

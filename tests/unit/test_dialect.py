@@ -196,3 +196,38 @@ def test_k_counts_repeats_in_a_drilling_cycle():
     assert issue is not None and (issue.line, issue.column) == (7, 16)  # the arc's K2, not K3
     prog = apply_decimal_point(parse_text(text), IS_B)
     assert ("K", 3.0) in values(prog) and ("K", 0.002) in values(prog)
+
+
+# ------------------------------------------------------------------ detection ----
+@pytest.mark.parametrize("text, name", [
+    # a construct only LinuxCNC has beats one Fanuc shares with LinuxCNC (the Fusion
+    # LinuxCNC post: G43 Z.. H1 and G64 P.. Q..)
+    ("%\n(R8S)\nN10 G90 G94 G17 G91.1\nN15 G20\nN45 G64 P0.0004 Q0.0004\nN60 G43 Z0.64 H1\n",
+     LINUXCNC),
+    ("O1000\nG43 H1 Z50.\nG28 G91 Z0.\n", FANUC),  # shared marks alone still tell Fanuc
+    # one mark of its own each: then the most marks (O, G43 H, IF GOTO against #<...>)
+    ("O1000\nG43 H1 Z50.\nIF [#1 GT 5] GOTO 10\n#<depth> = 2\n", FANUC),
+    ("G43 H1 Z5.0 M08 ; TCP on\nM30\n", "generic"),  # a ';' comment: Fanuc cannot read it
+    ("O1000 (MACHINE; TOYODA FH1250)\nG43 H1 Z5.\n", FANUC),  # ';' inside ( ) is text
+    ("\ufeffO1000\nG43 H1 Z5.\n".encode("utf-8").decode("latin-1"), FANUC),  # after a BOM
+    ("G1 X1 Y2\n", "generic"),
+])
+def test_the_dialect_is_told_by_the_constructs_only_it_has(text, name):
+    assert detect(text).name == name
+
+
+def test_the_marks_are_named_for_the_user():
+    found = detect("N45 G64 P0.0004 Q0.0004\nN60 G43 Z0.64 H1\nM2\n")
+    assert (found.name, found.marks) == ("linuxcnc", ("G64 P path tolerance", "M2 end"))
+
+
+@pytest.mark.skipif(not CORPUS.is_dir(), reason="no corpus")
+@pytest.mark.parametrize("name, dialect", [
+    ("more/fusion-linuxcnc-inch_r8s.ngc", LINUXCNC),
+    ("more/solidworks-fanuc_CGIP11719.nc", FANUC),
+    ("fusion/chess_engraved_box.nc", FANUC),
+    ("linuxcnc/3D_Chips.ngc", LINUXCNC),
+    ("linuxcnc/5axis/boat-xyzbc.ngc", "generic"),  # G43 H, and ';' comments Fanuc has not
+])
+def test_corpus_programs_are_told_right(name, dialect):
+    assert detect((CORPUS / name).read_bytes().decode("latin-1")).name == dialect
