@@ -18,7 +18,7 @@ import numpy as np
 
 from . import planner, plans as _plans
 from .contacts import Method
-from .controls import control_note
+from .controls import ANYWHERE, control_note, default_s_changes
 from .dialect import detect, resolve_decimal_point
 from .errors import VerificationError
 from .feedmode import inverse_time_words
@@ -121,6 +121,10 @@ class Summary:
     untimed_moves: int = 0  # feed moves the cutting time leaves out
     units: str = "mm"
     mesh_fit: tuple = ()  # (T, MeshFit) per planned tool, with a mesh
+    s_changes: str = ANYWHERE  # where S may change: anywhere, or between passes only
+    s_changes_source: str = ""  # "given", or the control whose default it is
+    passes: int = 0
+    cut_time_other_min: float = float("nan")  # the whole program with the other s_changes
 
     @property
     def time_change_pct(self) -> float:
@@ -215,7 +219,10 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
         f_style = replace(f_style, decimals=2, trailing_point=False)  # inch/min needs them
     quantum = 10.0 ** -f_style.decimals * (MM_PER_INCH if inch else 1.0)
     quantum = max(quantum, _inverse_time_quantum(tp, idx, f_style))
-    job = replace(job, options=replace(job.options, f_quantum_mm_min=quantum))
+    mode_given = job.options.s_changes is not None
+    control = job.control or found.name
+    mode = job.options.s_changes or default_s_changes(control)
+    job = replace(job, options=replace(job.options, f_quantum_mm_min=quantum, s_changes=mode))
     work = plan_program(prog, tp, idx, job, mesh_index)
     mesh_edge = float(mesh_index.edge_lengths.median_mm) if mesh_index else None
     del mesh_index  # the largest object of a big job; verification needs memory too
@@ -230,12 +237,13 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     if job.verify:
         verify(prog, tp, out, consumers, s_style, f_style, job, found.name, work.scope)
     summary = _summary(prog, tp, idx, work, targets, counts, mesh_edge, job)
-    control = job.control or found.name
     source = job.control_from if job.control else (
         f"detected from {len(found.marks)} mark{'s' if len(found.marks) > 1 else ''}"
         if found.marks else "no marks: generic")
     summary = replace(summary, control=control, control_source=source,
-                      control_notes=(control_note(control, summary.s_words),))
+                      control_notes=(control_note(control, summary.s_words, mode),),
+                      s_changes=mode,
+                      s_changes_source="given" if mode_given else f"the default for {control}")
     return Result(out, summary, prog, tp, idx, tuple(work.plans), targets, work.ops, work.scope)
 
 
@@ -444,7 +452,10 @@ def _summary(prog, tp, idx, work: Work, targets: Targets, counts, mesh_edge, job
         planned_time_after_min=float(t_after[planned_pts].sum()),
         untimed_moves=untimed_moves(tp),
         units="inch" if tp.line_inch is not None and tp.line_inch.any() else "mm",
-        mesh_fit=tuple((t, f) for t, f in (work.fits or {}).items() if f is not None))
+        mesh_fit=tuple((t, f) for t, f in (work.fits or {}).items() if f is not None),
+        passes=sum(p.passes for p in plans),
+        cut_time_other_min=float(t_after.sum()) + sum(
+            p.other_time_min - p.cut_time_min for p in plans))
     sampled = next(iter(work.views.values())).sampled
     est = sampled.estimate
     if est is not None:

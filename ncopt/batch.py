@@ -15,7 +15,7 @@ import multiprocessing as mp
 import os
 import signal
 import tempfile
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 from .api import rewrite_file
@@ -40,6 +40,8 @@ class FileReport:
     time_after_min: float = 0.0
     warnings: int = 0
     error: str = ""
+    report: str = ""  # the file's HTML page (batch --report index.html)
+    report_error: str = ""  # why it has none
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -107,13 +109,19 @@ def _backup(target: Path, backup: Path) -> None:
 
 def process_one(args: tuple) -> FileReport:
     """Rewrite one file (runs in a worker process)."""
-    src, target, job, mesh, backup_suffix = args
+    src, target, job, mesh, backup_suffix, *page = args
     try:
-        result = rewrite_file(src, job, mesh_path=mesh)
+        data = Path(src).read_bytes()
+        result = rewrite_file(src, job, mesh_path=mesh, data=data)
         write_atomic(Path(target), result.text.encode("latin-1"), backup_suffix)
         s = result.summary
-        return FileReport(str(src), str(target), "ok", s.blocks, s.s_words, s.f_words,
+        done = FileReport(str(src), str(target), "ok", s.blocks, s.s_words, s.f_words,
                           s.cut_time_before_min, s.cut_time_after_min, len(s.warnings))
+        if page and page[0]:
+            from .report import write_file_page
+            written, why = write_file_page(page[0], result, data, src, target, job, mesh)
+            done = replace(done, report=written, report_error=why)
+        return done
     except NothingToPlan as exc:
         if Path(target).resolve() != Path(src).resolve():
             write_atomic(Path(target), Path(src).read_bytes())

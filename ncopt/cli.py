@@ -19,7 +19,7 @@ from .api import Job, Summary, rewrite_file
 from .errors import (MeshError, NcoptError, NcParseError, NothingToPlan, PlanningError,
                      UsageError, VerificationError)
 from .contacts import Method
-from .controls import CONTROLS
+from .controls import CONTROLS, S_CHANGES
 from .dialect import DECIMAL_POINT_CONVENTIONS
 from .kinematics import check_name
 from .model import Cutter, CuttingData, Machine, PlanOptions
@@ -110,6 +110,13 @@ Stock = Annotated[str, typer.Option(
 Shape = Annotated[Optional[str], typer.Option(
     "--shape", help="ball or bull-nose: the cutter's shape, where the program's tool "
     "comment says otherwise (default: --diameter alone never overrides a flat end mill).")]
+ReportFile = Annotated[Optional[Path], typer.Option(
+    "--report", help="Also write an HTML report: times, S/F/fz/D_eff curves, a 3D toolpath "
+    "and the changed blocks, in one file that opens offline.")]
+SChanges = Annotated[Optional[str], typer.Option(
+    "--s-changes", help="anywhere: S follows the cut block by block; between-passes: one S "
+    "per pass, changed only on the moves between passes (for controls that stop at every S "
+    "word). Default: between-passes for grbl, else anywhere.")]
 KinematicsName = Annotated[Optional[str], typer.Option(
     "--kinematics", help="The machine's 5-axis kinematics, for programs that tilt the tool "
     "with rotary axes A/B/C: xyzac-trt, xyzac-head-table, xyzac-trt-linuxcnc, xyzbc-trt, "
@@ -155,7 +162,8 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
              fz_policy="centred", fz_band=2.0, control=None, min_s_interval_ms=None,
              machine=None, tools_file=None, cutter=None, material=None,
              method="contact", ap=0.2, allowance_along="normal", decimal_point=None,
-             operations=None, shape=None, stock=0.0, kinematics=None) -> Job:
+             operations=None, shape=None, stock=0.0, s_changes=None,
+             kinematics=None) -> Job:
     """A Job from command-line values and the profiles, checked; raises UsageError.
 
     Command-line values win; then the machine profile (--machine, else the
@@ -179,6 +187,7 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
     rapid, control = pick(rapid, "rapid_mm_min", 10000.0), pick(control, "control", None)
     min_s_interval_ms = pick(min_s_interval_ms, "min_s_interval_ms", 0.0)
     decimal_point = pick(decimal_point, "decimal_point", None)
+    s_changes = pick(s_changes, "s_changes", None)
     kinematics = check_name(pick(kinematics, "kinematics", None))
     if cutter is not None:
         if diameter is not None:
@@ -219,6 +228,8 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
     if decimal_point is not None and decimal_point not in DECIMAL_POINT_CONVENTIONS:
         raise UsageError(f"--decimal-point must be one of {', '.join(DECIMAL_POINT_CONVENTIONS)}, "
                          f"not {decimal_point!r}")
+    if s_changes is not None and s_changes not in S_CHANGES:
+        raise UsageError(f"--s-changes must be anywhere or between-passes, not {s_changes!r}")
     if min_s_interval_ms < 0:
         raise UsageError("--min-s-interval-ms cannot be negative")
     if method not in ("contact", "material"):
@@ -242,7 +253,7 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
                cutting=CuttingData(vc, fz) if vc is not None else None,
                options=PlanOptions(planner=planner, min_rpm_step=min_rpm_step,
                                    fz_tolerance=fz_band / 100.0, fz_policy=fz_policy,
-                                   min_s_interval_ms=min_s_interval_ms),
+                                   min_s_interval_ms=min_s_interval_ms, s_changes=s_changes),
                tool=tool, teeth=teeth, control=control, control_from=control_from,
                method=Method(method, ap, allowance_along), decimal_point=decimal_point,
                tool_library={k: c for k, (c, _) in profiles.tools.items() if isinstance(k, int)},
@@ -293,20 +304,26 @@ def rewrite(
     planner: Planner = "lookahead", tool_point: ToolPoint = "tip", min_rpm_step: MinStep = 10.0,
     tool: Tool = None, rapid: Rapid = None, fz_policy: FzPolicy = "centred",
     fz_band: FzBand = 2.0, control: Control = None, decimal_point: DecimalPoint = None,
-    min_s_interval_ms: SInterval = None,
+    min_s_interval_ms: SInterval = None, s_changes: SChanges = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, method: MethodName = "contact", ap: Ap = "0.2",
     allowance_along: AllowanceAlong = "normal", operations: Operations = None,
-    shape: Shape = None, stock: Stock = "0", kinematics: KinematicsName = None,
+    shape: Shape = None, stock: Stock = "0", report: ReportFile = None,
+    kinematics: KinematicsName = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary on stderr.")] = False,
 ) -> None:
     """Rewrite a program's S and F words; every other byte stays as it is."""
     data = b""
     try:
         job = make_job(**_job_options(locals()))
+        _check_report(report)
         data = sys.stdin.buffer.read() if input == "-" else _read(input)
         result = rewrite_file(input, job, mesh_path=mesh, data=data)
         _write(output, result.text.encode("latin-1"), input)
+        if report is not None:
+            from .report import from_rewrite
+            _write_report(report, lambda index: from_rewrite(
+                result, data.decode("latin-1"), input, output or "-", job, index), mesh, quiet)
     except NothingToPlan as exc:
         if output is None or output == "-":  # a filter never eats its input
             sys.stdout.buffer.write(data)
@@ -316,6 +333,44 @@ def rewrite(
         _fail(exc)
     if not quiet:
         print_summary(result.summary, err)
+
+
+def _check_report(report: Optional[Path], json_ok: bool = False) -> None:
+    """Refuse a report that cannot be written before the (long) work, not after it."""
+    if report is None:
+        return
+    if not (json_ok and report.suffix.lower() == ".json"):
+        from .report import require_libraries
+        require_libraries()
+    if not report.resolve().parent.is_dir():
+        raise _IoError("the folder to write into does not exist; create it first", str(report))
+
+
+def _write_report(path: Path, gather, mesh: Optional[Path], quiet: bool = False) -> None:
+    """Simulate what the report shows (with the mesh, if any) and write the page."""
+    from .geometry import MeshIndex, load_stl
+    from .report import render, write
+
+    page = render(gather(MeshIndex(load_stl(mesh)) if mesh else None))
+    try:
+        write(path, page)
+    except OSError as exc:
+        raise _IoError(f"cannot write the report: {exc.strerror or exc}", str(path)) from None
+    if not quiet:
+        err.print(f"ncopt: report written to {path}", markup=False)
+
+
+def s_changes_line(s: Summary) -> str:
+    """Where S changes, why, and what the other choice would cut in."""
+    why = s.s_changes_source
+    other = (f"{s.cut_time_other_min:.1f} min" if s.cut_time_other_min == s.cut_time_other_min
+             else "not possible with these cutting data")
+    n = f"{s.passes} pass" + ("" if s.passes == 1 else "es")
+    if s.s_changes == "between-passes":
+        return (f"S changes between passes only ({why}): one S for each of {n}; with S "
+                f"changing anywhere along the cut: {other}")
+    return (f"S changes anywhere along the cut ({why}); between passes only (one S for each "
+            f"of {n}): {other}")
 
 
 def print_summary(s: Summary, console: Console) -> None:
@@ -338,6 +393,7 @@ def print_summary(s: Summary, console: Console) -> None:
         f"(planned operations {s.planned_time_before_min:.1f} -> {s.planned_time_after_min:.1f} min)")
     if s.untimed_moves:
         say(f"ncopt: {s.untimed_moves} feed blocks are not timed (position or feed not known)")
+    say(f"ncopt: {s_changes_line(s)}")
     if s.mesh_edge_mm is not None:
         say(f"ncopt: mesh median edge {s.mesh_edge_mm:.2f} mm")
     for tool, fit in s.mesh_fit:
@@ -380,14 +436,15 @@ def batch(
     jobs: Annotated[int, typer.Option("--jobs", "-j", help="Parallel processes.")] = 0,
     in_place: Annotated[bool, typer.Option("--in-place", help="Replace the originals "
                                            "(a backup NAME.bak is kept).")] = False,
-    report: Annotated[Optional[Path], typer.Option("--report", help="Write a JSON report.")] = None,
+    report: Annotated[Optional[Path], typer.Option("--report", help="Write a report: JSON "
+                      "(.json), or an HTML index (.html) with one page per file beside it.")] = None,
     mesh: Mesh = None, diameter: Diameter = None, corner_radius: CornerRadius = None,
     teeth: Teeth = 2, vc: Vc = None, fz: Fz = None, accel: Accel = None,
     max_rpm: MaxRpm = None, min_rpm: MinRpm = None, max_feed: MaxFeed = None,
     planner: Planner = "lookahead", tool_point: ToolPoint = "tip", min_rpm_step: MinStep = 10.0,
     tool: Tool = None, rapid: Rapid = None, fz_policy: FzPolicy = "centred",
     fz_band: FzBand = 2.0, control: Control = None, decimal_point: DecimalPoint = None,
-    min_s_interval_ms: SInterval = None,
+    min_s_interval_ms: SInterval = None, s_changes: SChanges = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, method: MethodName = "contact", ap: Ap = "0.2",
     allowance_along: AllowanceAlong = "normal", operations: Operations = None,
@@ -396,14 +453,18 @@ def batch(
     """Rewrite every program of a folder in parallel; one bad file never stops the others."""
     from .batch import find_programs, run_batch, target_for
     from .batchview import BatchView
+    from .report import page_path
 
     try:
         job = make_job(**_job_options(locals()))
+        _check_report(report, json_ok=True)
         base, files = find_programs(inputs)
         if in_place and output is not None:
             raise UsageError("give either -o OUTDIR or --in-place, not both")
+        html = report is not None and report.suffix.lower() != ".json"
         tasks = [(str(f), str(target_for(f, base, output, in_place)), job, mesh,
-                  ".bak" if in_place else None) for f in files]
+                  ".bak" if in_place else None, html and page_path(report, base, f) or None)
+                 for f in files]
     except NcoptError as exc:
         _fail(exc)
     if not tasks:
@@ -417,11 +478,44 @@ def batch(
         err.print("ncopt: interrupted; finished files are complete, no partial file was left")
         raise typer.Exit(int(Exit.INTERRUPTED))
     view.table(reports, base)
-    if report is not None:
+    if report is not None and report.suffix.lower() == ".json":
         report.write_text(json.dumps([r.to_dict() for r in reports], indent=2))
+    elif report is not None:
+        from .report import render_index, write
+        write(report, render_index(reports, base, report))
+        err.print(f"ncopt: report written to {report}", markup=False)
     failed = sum(r.status == "failed" for r in reports)
     raise typer.Exit(int(Exit.OK if failed == 0 else
                          Exit.NOTHING_DONE if failed == len(reports) else Exit.SOME_FAILED))
+
+
+@app.command()
+def report(
+    program: Annotated[str, typer.Argument(help="NC program to report on (any program, by "
+                                           "ncopt or not), or - for stdin.")],
+    output: Annotated[Path, typer.Option("-o", "--output", help="The HTML file to write.")],
+    against: Annotated[Optional[str], typer.Option(
+        "--against", help="The original program, to compare with.")] = None,
+    sample: Annotated[float, typer.Option("--sample", help="Sample spacing along the path, mm.")] = 0.1,
+    mesh: Mesh = None, diameter: Diameter = None, corner_radius: CornerRadius = None,
+    teeth: Teeth = 2, vc: Vc = None, fz: Fz = None, accel: Accel = None,
+    max_rpm: MaxRpm = None, min_rpm: MinRpm = None, max_feed: MaxFeed = None,
+    tool_point: ToolPoint = "tip", tool: Tool = None, rapid: Rapid = None,
+    machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
+    material: Material = None, control: Control = None, decimal_point: DecimalPoint = None,
+) -> None:
+    """Write one HTML page about a program (and its original): times, curves, 3D toolpath."""
+    from .report import from_programs
+
+    try:
+        job = make_job(**_job_options(locals()))
+        _check_report(output)
+        text = (sys.stdin.buffer.read() if program == "-" else _read(program)).decode("latin-1")
+        original = _read(against).decode("latin-1") if against else None
+        _write_report(output, lambda index: from_programs(text, program, original, against, job,
+                                                          index, sample), mesh)
+    except NcoptError as exc:
+        _fail(exc)
 
 
 @app.command()

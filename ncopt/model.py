@@ -334,6 +334,10 @@ class PlanOptions:
         choice; it halves the speed change allowed per block)
     min_s_interval_ms : least time between two S words (Sinumerik acknowledges each S
         through the PLC): a rise waits; a fall, which vc needs, never waits and is counted
+    s_changes : ``"anywhere"``: S follows the cut block by block; ``"between-passes"``: one S
+        per pass, changed only on the non-cutting blocks between passes (controls that stop
+        or wait at every S word, e.g. grbl); None: the control's default
+        (:func:`ncopt.controls.default_s_changes`)
     """
 
     planner: str = "lookahead"
@@ -343,6 +347,7 @@ class PlanOptions:
     f_quantum_mm_min: float = 0.0
     fz_policy: str = "centred"
     min_s_interval_ms: float = 0.0
+    s_changes: str | None = None
 
 
 @dataclass(frozen=True)

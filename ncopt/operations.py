@@ -444,7 +444,8 @@ def _parts(tp: Toolpath, pts: np.ndarray, feed: np.ndarray, diameter_mm: float) 
     d = tp.xyz_mm[feed] - tp.xyz_mm[feed - 1]
     plunge = np.abs(d[:, 2]) > 0.9 * np.maximum(np.linalg.norm(d, axis=1), 1e-12)
     f = tp.feed_mm_min[feed]
-    at_feed = f >= SLOW_FEED * _weighted_median(f, tp.seg_len_mm[feed])
+    typical = _weighted_median(f[~plunge], tp.seg_len_mm[feed][~plunge])  # plunges aside
+    at_feed = f >= SLOW_FEED * typical
     geo = feed[~plunge & at_feed]
     if geo.size == 0:
         return [_Part(0, NO_CUT, np.nan, np.nan, "no cut at the cutting feed", 0.0)]

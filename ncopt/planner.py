@@ -49,6 +49,9 @@ class Blocks:
     k_limited : the spindle's change over the block is bounded by the feed it would have
         at the target fz (S^2 by K*L, as in a cut) rather than by its own duration: the
         feed moves of a planned operation, whose F ncopt sets from S (default: cutting)
+    k_scale : per block, the share of K*L that applies (default 1): a block whose F
+        follows S at a higher feed per revolution than the target's is faster, so the
+        spindle changes less over it
     """
 
     length_mm: np.ndarray
@@ -60,6 +63,7 @@ class Blocks:
     spindle_start: np.ndarray | None = None
     running: np.ndarray | None = None
     k_limited: np.ndarray | None = None
+    k_scale: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = self.length_mm.shape[0]
@@ -127,7 +131,8 @@ def increments(blocks: Blocks, machine: Machine, k: float) -> tuple[np.ndarray, 
     """
     ramp = machine.accel_rpm_s * blocks.time_s
     limited = blocks.cutting if blocks.k_limited is None else blocks.k_limited
-    inc_s2 = np.where(limited & ~blocks.spindle_start, k * blocks.length_mm, np.inf)
+    k_len = k * blocks.length_mm if blocks.k_scale is None else k * blocks.length_mm * blocks.k_scale
+    inc_s2 = np.where(limited & ~blocks.spindle_start, k_len, np.inf)
     inc_s = np.where(limited | blocks.spindle_start, np.inf, ramp)
     return inc_s2, inc_s
 
@@ -535,6 +540,11 @@ def plan(blocks: Blocks, machine: Machine, cut: CuttingData, teeth: int,
     """Profile -> integer S commands (RPM) -> F (mm/min) per block."""
     if opts.planner not in ("lookahead", "forward"):
         raise PlanningError(f"unknown planner {opts.planner!r}")
+    if opts.s_changes == "between-passes":
+        from .passes import plan as between_passes
+        return between_passes(blocks, machine, cut, teeth, opts)
+    if opts.s_changes not in (None, "anywhere"):
+        raise PlanningError(f"unknown S change mode {opts.s_changes!r}")
     planner_fn = lookahead if opts.planner == "lookahead" else forward
     profile = planner_fn(blocks, machine, cut, teeth, opts)
     incs = increments(blocks, machine, profile.k_rpm2_per_mm)

@@ -19,7 +19,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from . import operations, planner, regions
+from . import operations, passes, planner, regions
+from .controls import ANYWHERE, BETWEEN_PASSES
 from .contacts import Method, Sampled, contacts_for
 from .errors import MeshError, NothingToPlan, PlanningError, UsageError
 from .interp import MM_PER_INCH
@@ -65,6 +66,9 @@ class OpPlan:
     lines: tuple = (0, 0)  # its (first, last) lines, 1-based, numbered without stamp lines
     coarse_lines: np.ndarray | None = None  # 0-based lines kept: F words too coarse for fz
     s_low_rpm: np.ndarray | None = None  # lowest real spindle speed per block of the window
+    passes: int = 0  # runs of cutting blocks (ncopt.passes.pass_ids)
+    cut_time_min: float = 0.0  # its cutting blocks at the planned F
+    other_time_min: float = float("nan")  # the same with the other --s-changes mode
 
 
 @dataclass(frozen=True)
@@ -104,7 +108,7 @@ def mesh_fit(view: ToolView, tp: Toolpath, selected: np.ndarray, tol_mm: float) 
     sm = view.sampled
     if sm.gap_mm is None:
         return None
-    use = selected[sm.point] & (sm.point > 0)
+    use = selected[sm.point] & (sm.point > 0) & _surface_moves(tp, selected)[sm.point]
     if not use.any():
         return None
     gap, line = sm.gap_mm[use], tp.line[sm.point[use]]
@@ -114,6 +118,20 @@ def mesh_fit(view: ToolView, tp: Toolpath, selected: np.ndarray, tol_mm: float) 
     return MeshFit(100.0 * float(np.sum(~air & ~gouge)) / n, 100.0 * float(air.sum()) / n,
                    100.0 * float(gouge.sum()) / n, float(max(-gap.min(), 0.0)),
                    first(gouge), first(air))
+
+
+def _surface_moves(tp: Toolpath, selected: np.ndarray) -> np.ndarray:
+    """(n,) bool: the selected moves that follow the surface: not plunges or retracts
+    (within 25 deg of the axis), not at a reduced feed (entries, links)."""
+    d = np.diff(tp.xyz_mm, axis=0, prepend=tp.xyz_mm[:1])
+    length = np.linalg.norm(d, axis=1)
+    across = np.abs(d[:, 2]) <= 0.9 * np.maximum(length, 1e-12)
+    out = selected & across
+    if out.any():
+        f = tp.feed_mm_min[out]
+        typical = operations._weighted_median(f, tp.seg_len_mm[out])
+        out &= tp.feed_mm_min >= operations.SLOW_FEED * typical
+    return out
 
 
 def check_fit(fit: MeshFit | None, tool: int, tol_mm: float, path: str) -> None:
@@ -171,23 +189,32 @@ def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, sour
     coarse = _too_coarse(base.req_rpm[win] * cut.vc_m_min, base.cutting[win] & planned,
                          machine, cut, view.cutter.teeth, opts)
     planned &= ~coarse
+    cutting = base.cutting[win] & planned
     blocks = planner.Blocks(
         length_mm=base.length_mm[win], req_rpm=base.req_rpm[win] * cut.vc_m_min,
-        cutting=base.cutting[win] & planned, planned=planned, time_s=base.time_s[win],
+        cutting=cutting, planned=planned, time_s=base.time_s[win],
         fixed_rpm=cmd_rpm[win].copy(), spindle_start=base.spindle_start[win],
-        running=base.running[win], k_limited=mine & planned)
+        running=base.running[win], k_limited=cutting)
     feed = tp.feed_mm_min[fp]
     d = tp.xyz_mm[fp] - tp.xyz_mm[np.maximum(fp - 1, 0)]
     plunge = -d[:, 2] > PLUNGE * np.maximum(np.linalg.norm(d, axis=1), 1e-12)
+    vertical = np.abs(d[:, 2]) > 0.9 * np.maximum(np.linalg.norm(d, axis=1), 1e-12)
     match = FEED_MATCH if tp.inverse_time is None else np.where(
         tp.inverse_time[fp], FEED_MATCH_G93 * np.abs(feed), FEED_MATCH)
-    s_ref, off_feed, f0, s0 = _feed_intent(blocks, feed, tp.spindle_rpm[fp], mine, machine,
-                                           cut, view.cutter, opts, intent, match)
+    s_ref, off_feed, f0, s0 = _feed_intent(blocks, feed, tp.spindle_rpm[fp], mine & ~vertical,
+                                           machine, cut, view.cutter, opts, intent, match)
+    # a cut off the cutting feed (a plunge at F1000 where the finish runs F279) goes as
+    # fast as its own feed per revolution: the spindle changes less over it
+    rev = feed / np.where(s_ref > 0, s_ref, np.nan)
+    blocks = replace(blocks, k_scale=np.where(
+        cutting & (off_feed | plunge) & (rev > 0),
+        np.minimum(1.0, cut.fz_mm * view.cutter.teeth / np.where(rev > 0, rev, 1.0)), 1.0))
     tail = _fixed_line_after(tp, idx, scope, last) if w1 == last + 1 else None
     n = blocks.length_mm.shape[0]
+    sep = _separating(tp, idx.first_point[win], blocks, view.sampled)
     try:
-        emitted, f_mm, _ = planner.plan(_with_tail(blocks, tail), machine, cut,
-                                        view.cutter.teeth, opts)
+        emitted, f_mm, _ = _plan_blocks(_with_tail(blocks, tail), machine, cut,
+                                        view.cutter.teeth, opts, _ext(sep, tail, True))
     except PlanningError as exc:
         raise PlanningError(exc.message, exc.path or path, exc.line) from None
     ext = lambda a, v: np.append(a, v) if tail is not None else a  # noqa: E731
@@ -196,20 +223,84 @@ def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, sour
                            ext(planned, False), ext(mine, False), ext(blocks.running, True))[:n]
     emitted = planner.Emitted(emitted.s_cmd_rpm[:n], emitted.s_low_rpm[:n],
                               emitted.s_high_rpm[:n], emitted.close_s_words)
-    f_mm = f_mm[:n]
     cmd_rpm[win] = s_cmd
-    # off the cutting feed, plunging, or in the air: fz as the program has it
     reduced = mine & planned & (off_feed | plunge | ~blocks.cutting)
-    scaled = feed * emitted.s_low_rpm / np.where(s_ref > 0, s_ref, np.nan)
-    f = np.where(reduced, np.minimum(scaled, machine.max_feed_mm_min), f_mm)
-    f = np.where(reduced | (mine & planned & blocks.cutting), f, np.nan)
+    feeds = lambda s_low, f_mm: _op_feeds(  # noqa: E731
+        s_low, f_mm[:n], feed, s_ref, reduced, blocks.cutting & mine & planned, plunge,
+        machine.max_feed_mm_min)
+    f = feeds(emitted.s_low_rpm, f_mm)
+    other = _other_mode_time(_with_tail(blocks, tail), machine, cut, view.cutter.teeth, opts,
+                             _ext(sep, tail, True), n, feeds)
     return OpPlan(k, op.tool, view.cutter, cut, source, (lo, w1), blocks, s_cmd, f, reduced,
                   f0, emitted.close_s_words,
                   _over_target(blocks, emitted, machine, cut, view.cutter), s0,
-                  coarse_lines=idx.line[win][coarse], s_low_rpm=emitted.s_low_rpm)
+                  coarse_lines=idx.line[win][coarse], s_low_rpm=emitted.s_low_rpm,
+                  passes=int(passes.pass_ids(blocks, sep).max(initial=-1)) + 1,
+                  cut_time_min=_feed_time(blocks.length_mm, f, opts.f_quantum_mm_min),
+                  other_time_min=other)
+
+
+def _op_feeds(s_low, f_mm, feed, s_ref, reduced, cutting, plunge, max_feed) -> np.ndarray:
+    """F per block (mm/min; NaN: the program's own stays): the planner's on the cuts at
+    the cutting feed; elsewhere fz as the program has it at most.  A plunge's F is never
+    raised (the tip's centre does not cut: a D16 ball plunging at 3 m/min because S rose
+    tenfold breaks), nor F in the air (the planner counts on the program's own time
+    there); a ramp or lead-in along the surface follows S."""
+    ratio = s_low / np.where(s_ref > 0, s_ref, np.nan)
+    scaled = feed * np.where(cutting & ~plunge, ratio, np.minimum(ratio, 1.0))
+    f = np.where(reduced, np.minimum(scaled, max_feed), f_mm)
+    return np.where(reduced | cutting, f, np.nan)
+
+
+def _feed_time(length_mm: np.ndarray, f_mm_min: np.ndarray, quantum: float) -> float:
+    """Minutes of the blocks whose F is set, at F as written (rounded down to the F words'
+    resolution, as the targets are)."""
+    ok = np.isfinite(f_mm_min) & (f_mm_min > 0)
+    f = f_mm_min[ok]
+    if quantum > 0:
+        f = np.maximum(np.floor(f / quantum + 1e-6) * quantum, quantum)
+    return float(np.sum(length_mm[ok] / f))
 
 
 COARSE_MARGIN = 1.25
+
+
+def _ext(a, tail, value):
+    """``a`` with one more element for the tail instant (when there is one)."""
+    return a if a is None or tail is None else np.append(a, value)
+
+
+def _plan_blocks(blocks, machine, cut, teeth, opts, sep):
+    if opts.s_changes == BETWEEN_PASSES:
+        return passes.plan(blocks, machine, cut, teeth, opts, sep)
+    return planner.plan(blocks, machine, cut, teeth, opts)
+
+
+def _separating(tp: Toolpath, fp: np.ndarray, blocks, sampled) -> np.ndarray | None:
+    """Without a mesh, the blocks between passes that surely leave the part: rapids and
+    moves that reach the top of the cut (a retract).  Near-vertical feed moves count as
+    air moves there, though a raster over a steep wall cuts on them: S must not change
+    on those.  With a mesh, every non-cutting block leaves the part (None)."""
+    if sampled.estimate is None:
+        return None
+    last = np.concatenate((fp[1:] - 1, [tp.n - 1])) if fp.size else fp
+    z = tp.xyz_mm[last, 2]
+    top = float(np.max(z[blocks.cutting], initial=-np.inf))
+    return (tp.motion[fp] == Motion.RAPID) | (z >= top - 1e-6)
+
+
+def _other_mode_time(blocks, machine, cut, teeth, opts, sep, n, feeds) -> float:
+    """Minutes of the operation's blocks whose F ncopt sets, in the other --s-changes mode:
+    what the choice costs (``feeds``: the F of the blocks from the spindle's lowest speed
+    and the planner's F)."""
+    other = BETWEEN_PASSES if opts.s_changes in (None, ANYWHERE) else ANYWHERE
+    try:
+        em, f_mm, _ = _plan_blocks(blocks, machine, cut, teeth, replace(opts, s_changes=other),
+                                   sep)
+    except PlanningError:  # that mode cannot hold the cutting data here: no figure
+        return float("nan")
+    return _feed_time(blocks.length_mm[:n], feeds(em.s_low_rpm[:n], f_mm),
+                      opts.f_quantum_mm_min)
 
 
 def _fixed_line_after(tp: Toolpath, idx: planner.BlockIndex, scope: Scope, last: int):
@@ -239,7 +330,8 @@ def _with_tail(blocks: planner.Blocks, tail_rpm: float | None) -> planner.Blocks
         cutting=add(blocks.cutting, False), planned=add(blocks.planned, False),
         time_s=add(blocks.time_s, 0.0), fixed_rpm=add(blocks.fixed_rpm, tail_rpm),
         spindle_start=add(blocks.spindle_start, False), running=add(blocks.running, True),
-        k_limited=add(blocks.k_limited, False))
+        k_limited=add(blocks.k_limited, False),
+        k_scale=None if blocks.k_scale is None else add(blocks.k_scale, 1.0))
 
 
 def _too_coarse(req_rpm, cutting, machine, cut, teeth, opts) -> np.ndarray:
@@ -271,7 +363,8 @@ def _back_at_fixed(s_cmd: np.ndarray, planned: np.ndarray, mine: np.ndarray,
 
 def _feed_intent(blocks, feed, s_prog, mine, machine, cut, cutter, opts, intent,
                  match=FEED_MATCH):
-    """Which blocks of the operation run at another feed than its cutting feed.
+    """Which blocks of the operation run at another feed than its cutting feed (read
+    from its ``mine`` blocks: plunges and retracts aside).
 
     Returns (s_ref, off_feed, F0, S0): per block the spindle speed the program's F
     refers to, and whether the block is off the cutting feed; the cutting feed F0

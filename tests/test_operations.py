@@ -46,8 +46,8 @@ def finish(name: str, tool: int, s: int = 6000, f: int = 1000, ramp_f: int = 333
     if new_tool:
         out += [f"T{tool} M6", f"S{s} M3", "G54"]
     x0, y0 = -10.0, -step * passes / 2
-    out += [f"G0 X{x0:.3f} Y{y0:.3f}", "Z15.", f"G1 Z{dome_z(x0, y0) + 1:.3f} F{ramp_f}",
-            f"Z{dome_z(x0, y0):.3f}"]
+    out += [f"G0 X{x0 - 3:.3f} Y{y0:.3f}", "Z15.", f"G1 Z{dome_z(x0, y0) + 1:.3f} F{ramp_f}",
+            f"X{x0:.3f} Z{dome_z(x0, y0):.3f}"]  # plunge, then ramp onto the surface
     first = True
     for i in range(passes):
         y = y0 + i * step
@@ -155,11 +155,15 @@ def test_reduced_feeds_never_get_a_higher_feed_per_tooth():
     fp = idx.first_point[lo:hi]
     prog_fz = tp.feed_mm_min[fp] / tp.spindle_rpm[fp]
     reduced = p.reduced
-    ramp = reduced & (tp.feed_mm_min[fp] == 333)
-    assert ramp.any()
+    d = tp.xyz_mm[fp] - tp.xyz_mm[fp - 1]
+    plunge = -d[:, 2] > 0.99 * np.linalg.norm(d, axis=1)
+    slow = reduced & (tp.feed_mm_min[fp] == 333)
+    assert (slow & plunge).any() and (slow & ~plunge).any()
     # fz at the block's lowest real speed, the highest it reaches: the program's
     assert np.all(p.f_mm_min[reduced] / p.s_low_rpm[reduced] <= prog_fz[reduced] * (1 + 1e-9))
-    assert np.all(p.f_mm_min[ramp] > 333)  # the spindle runs faster there: so does F
+    assert np.all(p.f_mm_min[slow & plunge] <= 333)  # a plunge's F is never raised
+    ramp = slow & ~plunge & p.blocks.cutting
+    assert ramp.any() and np.all(p.f_mm_min[ramp] > 333)  # the spindle runs faster: so does F
 
 
 def test_the_sample_bowls_plunge_keeps_its_feed_per_tooth(bowl_index):
@@ -175,8 +179,11 @@ def test_the_sample_bowls_plunge_keeps_its_feed_per_tooth(bowl_index):
     d = tp.xyz_mm[fp] - tp.xyz_mm[fp - 1]
     plunge = -d[:, 2] > 0.99 * np.linalg.norm(d, axis=1)
     assert plunge.any() and np.all(p.reduced[plunge])
-    # F279 at S1393: the plunge's F follows the spindle, never the cutting feed's raise
-    assert np.all(p.f_mm_min[plunge] <= 279 * p.s_low_rpm[plunge] / 1393 * (1 + 1e-9))
+    # F279 at S1393: a plunge's F is never raised (S rises tenfold where the ball's tip
+    # touches: F3004 before), and falls with the spindle where it runs slower
+    assert np.all(p.f_mm_min[plunge] <= 279 * (1 + 1e-9))
+    assert np.all(p.f_mm_min[plunge] <= 279 * p.s_low_rpm[plunge] / 1393 * (1 + 1e-9)
+                  + (p.s_low_rpm[plunge] >= 1393) * 1e9)
 
 
 @pytest.mark.parametrize("pieces, kinds", [

@@ -266,7 +266,10 @@ def planning_cases(draw):
     teeth = draw(st.integers(1, 4))
     # min_rpm_step at most what the fz band lets S fall in one block at the lowest speed
     # (300 RPM): otherwise the two options contradict each other
-    tolerance = draw(st.floats(0.005, 0.1))
+    # the planner refuses, by design (PlanningError), an fz band too narrow for integer S
+    # words at the lowest speed: with F from the lower speed ("below") that is under 0.68 %
+    # at 300 RPM, so narrower bands are no valid case
+    tolerance = draw(st.floats(0.007, 0.1))
     opts = PlanOptions(fz_tolerance=tolerance,
                        min_rpm_step=float(draw(st.integers(1, max(1, int(300 * tolerance))))))
     arr = lambda s: np.array(draw(st.lists(s, min_size=n, max_size=n)))  # noqa: E731
