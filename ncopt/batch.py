@@ -1,29 +1,45 @@
 """Rewrite a folder of programs in parallel processes, safely.
 
 * one bad file never stops the others; each file's outcome is reported truthfully;
-* outputs are written atomically (a temporary file in the target folder, then a
-  rename), so an interrupted batch leaves no partial output file;
-* originals are never overwritten unless ``in_place``, which keeps a backup;
+* outputs are written atomically (:mod:`ncopt.fileio`), so an interrupted or killed
+  batch leaves no partial output file (at most a temporary, which the next run in the
+  folder removes), and workers whose parent is gone stop quietly;
+* originals are never overwritten unless ``in_place``, which keeps every version it
+  replaces as a backup (NAME.bak, NAME.1.bak, ...); an output folder that is, lies in
+  or links to the input folder is refused;
 * subfolders are mirrored under the output folder, never written outside it.
 """
 
 from __future__ import annotations
 
 import glob
-import shutil
 import multiprocessing as mp
 import os
 import signal
 import tempfile
+import threading
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
-from .api import rewrite_file
-from .errors import NcoptError, NothingToPlan, UsageError
+from .errors import FileError, NcoptError, NothingToPlan, UsageError
+from .fileio import (TMP_SUFFIX, clean_stale_temporaries, discard, hint, replace_in_place,
+                     write_output)
 
 PROGRAM_SUFFIXES = {".nc", ".ngc", ".tap", ".gcode", ".mpf", ".spf", ".cnc", ".iso", ".h",
                     ".eia", ".ptp", ".min"}
-TMP_SUFFIX = ".ncopt-tmp"
+__all__ = ["TMP_SUFFIX", "FileReport", "Task", "find_programs", "plan_targets", "run_batch"]
+
+
+@dataclass(frozen=True)
+class Task:
+    """One file of a batch: where it is read, where it goes, and how it is planned."""
+
+    source: str
+    target: str
+    job: object  # ncopt.api.Job
+    mesh: str | None = None
+    in_place: bool = False
+    page: str | None = None  # batch --report index.html: this file's HTML page
 
 
 @dataclass(frozen=True)
@@ -40,6 +56,7 @@ class FileReport:
     time_after_min: float = 0.0
     warnings: int = 0
     error: str = ""
+    backup: str = ""  # in place: the backup made of the version replaced
     report: str = ""  # the file's HTML page (batch --report index.html)
     report_error: str = ""  # why it has none
 
@@ -59,12 +76,45 @@ def find_programs(spec: str) -> tuple[Path, list[Path]]:
     return base, files
 
 
-def target_for(src: Path, base: Path, out_dir: Path | None, in_place: bool) -> Path:
-    """Where a program's rewrite goes: mirrored under out_dir, or over itself."""
+def plan_targets(files: list[Path], base: Path, out_dir: Path | None, in_place: bool,
+                 folder_given: bool) -> list[Path]:
+    """Where each program's rewrite goes: mirrored under out_dir, or over itself.
+
+    Refused (UsageError): no -o and no --in-place, both, an output folder that is the
+    input folder, lies inside it or links to it (folder_given: the input was a folder),
+    and any output that would land on an input.
+    """
+    if in_place and out_dir is not None:
+        raise UsageError("give either -o OUTDIR or --in-place, not both")
     if in_place:
-        return src
+        return list(files)
     if out_dir is None:
         raise UsageError("give an output folder with -o, or --in-place to replace the originals")
+    real_out, real_base = Path(os.path.realpath(out_dir)), Path(os.path.realpath(base))
+    if folder_given and real_out.is_relative_to(real_base):
+        where = "the input folder" if real_out == real_base else "inside the input folder"
+        raise UsageError(f"the output folder is {where} {base}: the originals would be "
+                         "overwritten or read again; write to another folder, or use "
+                         "--in-place (which keeps backups)", str(out_dir))
+    targets = [_mirrored(f, base, out_dir) for f in files]
+    inputs = {_identity(f) for f in files} - {None}
+    for t in targets:
+        if _identity(t) in inputs:
+            raise UsageError("this output would overwrite an input program; write to another "
+                             "folder, or use --in-place (which keeps backups)", str(t))
+    return targets
+
+
+def _identity(path: Path) -> tuple[int, int] | None:
+    """The file a path names (device, inode), through links; None when there is none."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino
+
+
+def _mirrored(src: Path, base: Path, out_dir: Path) -> Path:
     # the path as found in the folder (a symlink to elsewhere keeps its place in it)
     rel = Path(os.path.abspath(src)).relative_to(os.path.abspath(base))
     target = Path(os.path.abspath(out_dir / rel))
@@ -73,68 +123,63 @@ def target_for(src: Path, base: Path, out_dir: Path | None, in_place: bool) -> P
     return target
 
 
-def write_atomic(target: Path, data: bytes, backup_suffix: str | None = None,
-                 make_parents: bool = True) -> None:
-    """Write via a temporary file in the same folder and a rename (never half-written)."""
-    if make_parents:
-        target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=TMP_SUFFIX, dir=target.parent)
+def prepare_output_folder(out_dir: Path) -> None:
+    """Create the output folder and make sure files can be written into it; a FileError
+    that names the output folder, not an input, otherwise."""
     try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-            handle.flush()
-            os.fsync(handle.fileno())
-        if backup_suffix and target.exists():
-            if target.read_bytes() == data:  # already so: nothing to replace, nothing to back up
-                Path(tmp).unlink()
-                return
-            _backup(target, target.with_name(target.name + backup_suffix))
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        out_dir.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=".ncopt-probe.", suffix=TMP_SUFFIX, dir=out_dir)
+        os.close(fd)
+        discard(Path(probe))
+    except OSError as exc:
+        raise FileError(f"cannot write into the output folder: {exc.strerror}; {hint(exc)}",
+                        str(out_dir)) from None
 
 
-def _backup(target: Path, backup: Path) -> None:
-    """The version this run replaces becomes NAME.bak (the file itself, hard-linked, so
-    nothing is copied; a copy where links are not possible), replacing an older backup."""
-    tmp = backup.with_name(f".{backup.name}.link{TMP_SUFFIX}")
-    tmp.unlink(missing_ok=True)
-    try:
-        os.link(target, tmp)
-    except OSError:
-        shutil.copy2(target, tmp)
-    os.replace(tmp, backup)
+def process_one(task: Task) -> FileReport:
+    """Rewrite one file (runs in a worker process); every failure becomes a report."""
+    from .api import rewrite_file
 
-
-def process_one(args: tuple) -> FileReport:
-    """Rewrite one file (runs in a worker process)."""
-    src, target, job, mesh, backup_suffix, *page = args
+    src, target = task.source, task.target
     try:
         data = Path(src).read_bytes()
-        result = rewrite_file(src, job, mesh_path=mesh, data=data)
-        write_atomic(Path(target), result.text.encode("latin-1"), backup_suffix)
+    except OSError as exc:
+        return _failed(task, f"cannot read the file: {exc.strerror}; {hint(exc)}")
+    try:
+        result = rewrite_file(src, task.job, mesh_path=task.mesh, data=data)
+        text = result.text.encode("latin-1")
+        backup = None
+        if task.in_place:
+            backup = replace_in_place(Path(src), data, text)
+        else:
+            write_output(Path(target), text, make_parents=True)
         s = result.summary
-        done = FileReport(str(src), str(target), "ok", s.blocks, s.s_words, s.f_words,
-                          s.cut_time_before_min, s.cut_time_after_min, len(s.warnings))
-        if page and page[0]:
+        done = FileReport(src, target, "ok", s.blocks, s.s_words, s.f_words,
+                          s.cut_time_before_min, s.cut_time_after_min, len(s.warnings),
+                          backup=str(backup or ""))
+        if task.page:
             from .report import write_file_page
-            written, why = write_file_page(page[0], result, data, src, target, job, mesh)
+            written, why = write_file_page(task.page, result, data, src, target, task.job,
+                                           task.mesh)
             done = replace(done, report=written, report_error=why)
         return done
     except NothingToPlan as exc:
-        if Path(target).resolve() != Path(src).resolve():
-            write_atomic(Path(target), Path(src).read_bytes())
-        return FileReport(str(src), str(target), "unchanged", error=exc.message)
+        try:
+            if not task.in_place:
+                write_output(Path(target), data, make_parents=True)
+        except FileError as write_exc:
+            return _failed(task, str(write_exc))
+        return FileReport(src, target, "unchanged", error=exc.message)
+    except FileError as exc:  # names the output, or the file replaced in place
+        return _failed(task, str(exc))
     except NcoptError as exc:
-        return FileReport(str(src), str(target), "failed", error=_short(exc))
-    except OSError as exc:
-        return FileReport(str(src), str(target), "failed",
-                          error=f"{src}: {exc.strerror or exc}")
+        return _failed(task, _short(exc))
     except Exception as exc:  # noqa: BLE001 - a bug on one file must not stop the batch
-        return FileReport(str(src), str(target), "failed",
-                          error=f"{src}: internal error, please report it: "
-                                f"{type(exc).__name__}: {exc}")
+        return _failed(task, f"internal error, please report it: {type(exc).__name__}: {exc}")
+
+
+def _failed(task: Task, error: str) -> FileReport:
+    return FileReport(task.source, task.target, "failed", error=error)
 
 
 def _short(exc: NcoptError) -> str:
@@ -144,12 +189,24 @@ def _short(exc: NcoptError) -> str:
 
 
 def _worker_init() -> None:
-    # the parent handles Ctrl-C and SIGTERM: it stops the pool and cleans up
+    # The parent handles Ctrl-C and SIGTERM: it stops the pool with SIGTERM, whose default
+    # ends a worker at once whichever of its threads the signal reaches (a Python handler
+    # would run only in the main thread, which may wait on a lock no signal interrupts).
+    # What a worker stopped mid-write leaves is a temporary with its pid in the name; the
+    # parent removes those once the pool is gone, and so does any later run in the folder.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    parent = mp.parent_process()
+    if parent is not None:  # a killed parent: end the same way, with no traceback
+        threading.Thread(target=_stop_with, args=(parent,), daemon=True).start()
 
 
-def run_batch(tasks: list[tuple], jobs: int, on_done=None) -> list[FileReport]:
+def _stop_with(parent) -> None:
+    parent.join()
+    os.kill(os.getpid(), signal.SIGTERM)
+
+
+def run_batch(tasks: list[Task], jobs: int, on_done=None) -> list[FileReport]:
     """Run tasks in ``jobs`` processes; ``on_done(report)`` after each file.
 
     On SIGINT/SIGTERM the workers are stopped, temporary files removed, and
@@ -158,7 +215,7 @@ def run_batch(tasks: list[tuple], jobs: int, on_done=None) -> list[FileReport]:
     reports: list[FileReport] = []
     previous = signal.signal(signal.SIGTERM, _raise_interrupt)
     ctx = mp.get_context("fork") if hasattr(os, "fork") else mp.get_context("spawn")
-    pool = ctx.Pool(max(1, jobs), initializer=_worker_init)
+    pool = ctx.Pool(max(1, min(jobs, len(tasks))), initializer=_worker_init)
     try:
         for report in pool.imap_unordered(process_one, tasks):
             reports.append(report)
@@ -171,10 +228,9 @@ def run_batch(tasks: list[tuple], jobs: int, on_done=None) -> list[FileReport]:
     finally:
         pool.join()
         signal.signal(signal.SIGTERM, previous)
-        for _, target, *_ in tasks:
-            for tmp in Path(target).parent.glob(f".{Path(target).name}.*{TMP_SUFFIX}"):
-                tmp.unlink(missing_ok=True)
-    order = {str(t[0]): i for i, t in enumerate(tasks)}
+        for folder in {Path(t.target).parent for t in tasks}:
+            clean_stale_temporaries(folder)  # the workers are gone: theirs are stale
+    order = {t.source: i for i, t in enumerate(tasks)}
     return sorted(reports, key=lambda r: order.get(r.source, 0))
 
 

@@ -1,28 +1,34 @@
-"""``ncopt`` command line: a thin typer layer over :mod:`ncopt.api`."""
+"""``ncopt`` command line: a thin typer layer over :mod:`ncopt.api`.
 
-from __future__ import annotations
+Startup stays light: ``ncopt --help`` and ``ncopt version`` import neither numpy nor lark
+nor the api; each command imports what it needs in its body.  Every command runs inside
+:func:`ncopt.stdio.command_faults`, so an ncopt error, an interrupt (Ctrl-C or SIGTERM) or
+a failed write to stdout ends it with one line on stderr and an exit code of
+:class:`Exit`, never a traceback.  A command added with ``@app.command()`` gets the same.
+"""
 
-import json
+# No `from __future__ import annotations` here: typer evaluates every string annotation when
+# it builds the commands, a third of the time `ncopt --help` took.
+import functools
 import os
 import re
+import signal
 import sys
-from dataclasses import replace
 from enum import IntEnum
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import TYPE_CHECKING, Annotated, Optional
 
 import typer
-from rich.console import Console
 
 from . import __version__
-from .api import Job, Summary, rewrite_file
-from .errors import (MeshError, NcoptError, NcParseError, NothingToPlan, PlanningError,
-                     UsageError, VerificationError)
-from .contacts import Method
-from .controls import CONTROLS, S_CHANGES
-from .dialect import DECIMAL_POINT_CONVENTIONS
-from .kinematics import check_name
-from .model import Cutter, CuttingData, Machine, PlanOptions
+from .errors import (FileError, MeshError, NcoptError, NcParseError, NothingToPlan,
+                     PlanningError, UsageError, VerificationError)
+from .stdio import command_faults, err, interrupt, read_programs, say, write_stdout
+
+if TYPE_CHECKING:
+    from rich.console import Console
+
+    from .api import Job, Summary
 
 
 class Exit(IntEnum):
@@ -41,9 +47,26 @@ class Exit(IntEnum):
     INTERRUPTED = 130
 
 
-app = typer.Typer(add_completion=False, pretty_exceptions_show_locals=False,
-                  help="Rewrite S and F words of finishing programs for constant vc and fz.")
-err = Console(stderr=True, highlight=False, soft_wrap=True)
+DIFFERENT = 1  # ncopt diff: the files differ (as diff(1) says it)
+
+
+class _App(typer.Typer):
+    """typer.Typer whose commands all run inside :func:`ncopt.stdio.command_faults`."""
+
+    def command(self, *args, **kwargs):
+        register = super().command(*args, **kwargs)
+
+        def decorator(fn):
+            register(_guarded(fn))
+            return fn
+        return decorator
+
+
+app = _App(add_completion=False, pretty_exceptions_show_locals=False, no_args_is_help=True,
+           rich_markup_mode=None,
+           context_settings={"help_option_names": ["-h", "--help"]},
+           help="Rewrite S and F words of finishing programs for constant vc and fz.")
+
 
 # options shared by rewrite, batch and simulate
 Mesh = Annotated[Optional[Path], typer.Option(
@@ -117,6 +140,8 @@ SChanges = Annotated[Optional[str], typer.Option(
     "--s-changes", help="anywhere: S follows the cut block by block; between-passes: one S "
     "per pass, changed only on the moves between passes (for controls that stop at every S "
     "word). Default: between-passes for grbl, else anywhere.")]
+Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="No summary on stderr (errors "
+                                     "still are).")]
 KinematicsName = Annotated[Optional[str], typer.Option(
     "--kinematics", help="The machine's 5-axis kinematics, for programs that tilt the tool "
     "with rotary axes A/B/C: xyzac-trt, xyzac-head-table, xyzac-trt-linuxcnc, xyzbc-trt, "
@@ -125,7 +150,7 @@ KinematicsName = Annotated[Optional[str], typer.Option(
 
 
 def _exit_code(exc: NcoptError) -> Exit:
-    for kind, code in ((_IoError, Exit.IO), (UsageError, Exit.USAGE), (MeshError, Exit.MESH),
+    for kind, code in ((FileError, Exit.IO), (UsageError, Exit.USAGE), (MeshError, Exit.MESH),
                        (PlanningError, Exit.PLANNING), (VerificationError, Exit.VERIFICATION),
                        (NcParseError, Exit.PROGRAM)):
         if isinstance(exc, kind):
@@ -134,12 +159,38 @@ def _exit_code(exc: NcoptError) -> Exit:
 
 
 def _fail(exc: NcoptError) -> None:
-    err.print(str(exc), markup=False)
+    say(str(exc))
     raise typer.Exit(int(_exit_code(exc)))
 
 
-class _IoError(UsageError):
-    """A file cannot be read or written."""
+def _guarded(fn):
+    @functools.wraps(fn)
+    def run(*args, **kwargs):
+        with command_faults(_exit_code, Exit.INTERRUPTED):
+            return fn(*args, **kwargs)
+    return run
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        raise typer.Exit(_say_version())
+
+
+def _say_version() -> int:
+    """Print the version; the exit code (a closed stdout is exit 7 here too)."""
+    try:
+        write_stdout(f"{__version__}\n".encode())
+    except FileError as exc:
+        say(str(exc))
+        return int(Exit.IO)
+    return int(Exit.OK)
+
+
+@app.callback()
+def _root(version: Annotated[bool, typer.Option(
+        "--version", is_eager=True, callback=_print_version,
+        help="Print the version and exit.")] = False) -> None:
+    """Rewrite S and F words of finishing programs for constant vc and fz."""
 
 
 _LENGTH = re.compile(r"^\s*([+-]?(?:\d+\.?\d*|\.\d+))\s*(mm|in|inch|inches|\")?\s*$", re.I)
@@ -163,12 +214,17 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
              machine=None, tools_file=None, cutter=None, material=None,
              method="contact", ap=0.2, allowance_along="normal", decimal_point=None,
              operations=None, shape=None, stock=0.0, s_changes=None,
-             kinematics=None) -> Job:
+             kinematics=None) -> "Job":
     """A Job from command-line values and the profiles, checked; raises UsageError.
 
     Command-line values win; then the machine profile (--machine, else the
     profiles' default_machine); then ncopt's defaults.
     """
+    from .api import Job
+    from .contacts import Method
+    from .controls import CONTROLS, S_CHANGES
+    from .dialect import DECIMAL_POINT_CONVENTIONS
+    from .model import Cutter, CuttingData, Machine, PlanOptions
     from .profiles import load
 
     bare = diameter is not None and not isinstance(diameter, (int, float)) and \
@@ -188,6 +244,8 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
     min_s_interval_ms = pick(min_s_interval_ms, "min_s_interval_ms", 0.0)
     decimal_point = pick(decimal_point, "decimal_point", None)
     s_changes = pick(s_changes, "s_changes", None)
+    from .kinematics import check_name
+
     kinematics = check_name(pick(kinematics, "kinematics", None))
     if cutter is not None:
         if diameter is not None:
@@ -225,11 +283,11 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
         raise UsageError("--fz-band is a percentage above 0 and below 50")
     if control is not None and control not in CONTROLS:
         raise UsageError(f"--dialect must be one of {', '.join(CONTROLS)}, not {control!r}")
+    if s_changes is not None and s_changes not in S_CHANGES:
+        raise UsageError(f"--s-changes must be anywhere or between-passes, not {s_changes!r}")
     if decimal_point is not None and decimal_point not in DECIMAL_POINT_CONVENTIONS:
         raise UsageError(f"--decimal-point must be one of {', '.join(DECIMAL_POINT_CONVENTIONS)}, "
                          f"not {decimal_point!r}")
-    if s_changes is not None and s_changes not in S_CHANGES:
-        raise UsageError(f"--s-changes must be anywhere or between-passes, not {s_changes!r}")
     if min_s_interval_ms < 0:
         raise UsageError("--min-s-interval-ms cannot be negative")
     if method not in ("contact", "material"):
@@ -268,36 +326,12 @@ def _job_options(values: dict) -> dict:
     return {k: v for k, v in values.items() if k in names}
 
 
-def _read(path: str) -> bytes:
-    try:
-        return Path(path).read_bytes()
-    except OSError as exc:
-        raise _IoError(f"cannot read the file: {exc.strerror}; check the path", path) from None
-
-
-def _write(output: Optional[str], data: bytes, input: str) -> None:
-    """stdout, or a new file written atomically (temporary file + rename)."""
-    if output is None or output == "-":
-        sys.stdout.buffer.write(data)
-        sys.stdout.buffer.flush()
-        return
-    target = Path(output)
-    if input != "-" and target.exists() and target.resolve() == Path(input).resolve():
-        raise UsageError("the output would overwrite the input; write to another file "
-                         "(or use ncopt batch --in-place, which keeps a backup)", output)
-    from .batch import write_atomic
-
-    try:
-        write_atomic(target, data, make_parents=False)  # a missing folder is the user's to make
-    except OSError as exc:
-        raise _IoError(f"cannot write the output: {exc.strerror}", output) from None
-
-
 @app.command()
 def rewrite(
     input: Annotated[str, typer.Argument(help="NC program to rewrite, or - for stdin.")],
     output: Annotated[Optional[str], typer.Option(
-        "-o", "--output", help="Where to write; - or omitted: stdout.")] = None,
+        "-o", "--output", help="Where to write: a file, a folder (ending in /: the input's "
+        "name inside it); - or omitted: stdout.")] = None,
     mesh: Mesh = None, diameter: Diameter = None, corner_radius: CornerRadius = None,
     teeth: Teeth = 2, vc: Vc = None, fz: Fz = None, accel: Accel = None,
     max_rpm: MaxRpm = None, min_rpm: MinRpm = None, max_feed: MaxFeed = None,
@@ -308,29 +342,32 @@ def rewrite(
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, method: MethodName = "contact", ap: Ap = "0.2",
     allowance_along: AllowanceAlong = "normal", operations: Operations = None,
-    shape: Shape = None, stock: Stock = "0", report: ReportFile = None,
+    shape: Shape = None, stock: Stock = "0", report: ReportFile = None, quiet: Quiet = False,
     kinematics: KinematicsName = None,
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary on stderr.")] = False,
 ) -> None:
     """Rewrite a program's S and F words; every other byte stays as it is."""
-    data = b""
+    from .api import rewrite_file
+    from .fileio import output_file, write_output
+
+    job = make_job(**_job_options(locals()))
+    _check_report(report)
+    target = output_file(output, input)
+    [data] = read_programs([input])
     try:
-        job = make_job(**_job_options(locals()))
-        _check_report(report)
-        data = sys.stdin.buffer.read() if input == "-" else _read(input)
         result = rewrite_file(input, job, mesh_path=mesh, data=data)
-        _write(output, result.text.encode("latin-1"), input)
-        if report is not None:
-            from .report import from_rewrite
-            _write_report(report, lambda index: from_rewrite(
-                result, data.decode("latin-1"), input, output or "-", job, index), mesh, quiet)
-    except NothingToPlan as exc:
-        if output is None or output == "-":  # a filter never eats its input
-            sys.stdout.buffer.write(data)
-            sys.stdout.buffer.flush()
-        _fail(exc)
-    except NcoptError as exc:
-        _fail(exc)
+    except NothingToPlan:
+        if target is None:  # a filter never eats its input
+            write_stdout(data)
+        raise
+    text = result.text.encode("latin-1")
+    if target is None:
+        write_stdout(text)
+    else:
+        write_output(target, text)
+    if report is not None:
+        from .report import from_rewrite
+        _write_report(report, lambda index: from_rewrite(
+            result, data.decode("latin-1"), input, output or "-", job, index), mesh, quiet)
     if not quiet:
         print_summary(result.summary, err)
 
@@ -343,24 +380,22 @@ def _check_report(report: Optional[Path], json_ok: bool = False) -> None:
         from .report import require_libraries
         require_libraries()
     if not report.resolve().parent.is_dir():
-        raise _IoError("the folder to write into does not exist; create it first", str(report))
+        raise FileError("the folder to write into does not exist; create it first", str(report))
 
 
 def _write_report(path: Path, gather, mesh: Optional[Path], quiet: bool = False) -> None:
     """Simulate what the report shows (with the mesh, if any) and write the page."""
+    from .fileio import write_output
     from .geometry import MeshIndex, load_stl
-    from .report import render, write
+    from .report import render
 
     page = render(gather(MeshIndex(load_stl(mesh)) if mesh else None))
-    try:
-        write(path, page)
-    except OSError as exc:
-        raise _IoError(f"cannot write the report: {exc.strerror or exc}", str(path)) from None
+    write_output(path, page.encode("utf-8"))
     if not quiet:
-        err.print(f"ncopt: report written to {path}", markup=False)
+        say(f"ncopt: report written to {path}")
 
 
-def s_changes_line(s: Summary) -> str:
+def s_changes_line(s: "Summary") -> str:
     """Where S changes, why, and what the other choice would cut in."""
     why = s.s_changes_source
     other = (f"{s.cut_time_other_min:.1f} min" if s.cut_time_other_min == s.cut_time_other_min
@@ -373,7 +408,7 @@ def s_changes_line(s: Summary) -> str:
             f"of {n}): {other}")
 
 
-def print_summary(s: Summary, console: Console) -> None:
+def print_summary(s: "Summary", console: "Console") -> None:
     """The few lines a machinist reads after a rewrite."""
     say = lambda text: console.print(text, markup=False)  # noqa: E731
     say(f"ncopt: {s.blocks} blocks, {s.cutting_blocks} cutting blocks planned, "
@@ -434,8 +469,8 @@ def batch(
     output: Annotated[Optional[Path], typer.Option("-o", "--output", help="Output folder; "
                                                    "subfolders are mirrored.")] = None,
     jobs: Annotated[int, typer.Option("--jobs", "-j", help="Parallel processes.")] = 0,
-    in_place: Annotated[bool, typer.Option("--in-place", help="Replace the originals "
-                                           "(a backup NAME.bak is kept).")] = False,
+    in_place: Annotated[bool, typer.Option("--in-place", help="Replace the originals, each "
+                                           "kept as NAME.bak (NAME.1.bak, ... after it).")] = False,
     report: Annotated[Optional[Path], typer.Option("--report", help="Write a report: JSON "
                       "(.json), or an HTML index (.html) with one page per file beside it.")] = None,
     mesh: Mesh = None, diameter: Diameter = None, corner_radius: CornerRadius = None,
@@ -448,42 +483,44 @@ def batch(
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, method: MethodName = "contact", ap: Ap = "0.2",
     allowance_along: AllowanceAlong = "normal", operations: Operations = None,
-    shape: Shape = None, stock: Stock = "0", kinematics: KinematicsName = None,
+    shape: Shape = None, stock: Stock = "0", quiet: Quiet = False,
+    kinematics: KinematicsName = None,
 ) -> None:
     """Rewrite every program of a folder in parallel; one bad file never stops the others."""
-    from .batch import find_programs, run_batch, target_for
+    from .batch import Task, find_programs, plan_targets, prepare_output_folder, run_batch
     from .batchview import BatchView
-    from .report import page_path
+    from .fileio import write_output
 
-    try:
-        job = make_job(**_job_options(locals()))
-        _check_report(report, json_ok=True)
-        base, files = find_programs(inputs)
-        if in_place and output is not None:
-            raise UsageError("give either -o OUTDIR or --in-place, not both")
-        html = report is not None and report.suffix.lower() != ".json"
-        tasks = [(str(f), str(target_for(f, base, output, in_place)), job, mesh,
-                  ".bak" if in_place else None, html and page_path(report, base, f) or None)
-                 for f in files]
-    except NcoptError as exc:
-        _fail(exc)
-    if not tasks:
-        err.print(f"ncopt: no NC programs found in {inputs}", markup=False)
+    job = make_job(**_job_options(locals()))
+    _check_report(report, json_ok=True)
+    base, files = find_programs(inputs)
+    targets = plan_targets(files, base, output, in_place, folder_given=Path(inputs).is_dir())
+    html = report is not None and report.suffix.lower() != ".json"
+    if not files:
+        say(f"ncopt: no NC programs found in {inputs}")
         raise typer.Exit(int(Exit.NOTHING_DONE))
-    view = BatchView(err, files)
+    if output is not None:
+        prepare_output_folder(output)
+    if html:
+        from .report import page_path
+    tasks = [Task(str(f), str(t), job, None if mesh is None else str(mesh), in_place,
+                  str(page_path(report, base, f)) if html else None)
+             for f, t in zip(files, targets)]
+    view = BatchView(err, files, quiet=quiet)
     try:
         with view:
             reports = run_batch(tasks, jobs or os.cpu_count() or 1, view.done)
     except KeyboardInterrupt:
-        err.print("ncopt: interrupted; finished files are complete, no partial file was left")
-        raise typer.Exit(int(Exit.INTERRUPTED))
+        say("ncopt: interrupted; finished files are complete, no partial file was left")
+        raise typer.Exit(int(Exit.INTERRUPTED)) from None
     view.table(reports, base)
-    if report is not None and report.suffix.lower() == ".json":
-        report.write_text(json.dumps([r.to_dict() for r in reports], indent=2))
-    elif report is not None:
-        from .report import render_index, write
-        write(report, render_index(reports, base, report))
-        err.print(f"ncopt: report written to {report}", markup=False)
+    if report is not None and not html:
+        import json
+        write_output(report, json.dumps([r.to_dict() for r in reports], indent=2).encode())
+    elif html:
+        from .report import render_index
+        write_output(report, render_index(reports, base, report).encode("utf-8"))
+        say(f"ncopt: report written to {report}")
     failed = sum(r.status == "failed" for r in reports)
     raise typer.Exit(int(Exit.OK if failed == 0 else
                          Exit.NOTHING_DONE if failed == len(reports) else Exit.SOME_FAILED))
@@ -503,24 +540,25 @@ def report(
     tool_point: ToolPoint = "tip", tool: Tool = None, rapid: Rapid = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, control: Control = None, decimal_point: DecimalPoint = None,
+    quiet: Quiet = False, kinematics: KinematicsName = None,
 ) -> None:
     """Write one HTML page about a program (and its original): times, curves, 3D toolpath."""
     from .report import from_programs
 
-    try:
-        job = make_job(**_job_options(locals()))
-        _check_report(output)
-        text = (sys.stdin.buffer.read() if program == "-" else _read(program)).decode("latin-1")
-        original = _read(against).decode("latin-1") if against else None
-        _write_report(output, lambda index: from_programs(text, program, original, against, job,
-                                                          index, sample), mesh)
-    except NcoptError as exc:
-        _fail(exc)
+    job = make_job(**_job_options(locals()))
+    _check_report(output)
+    names = [program] + ([against] if against else [])
+    data = read_programs(names)
+    text = data[0].decode("latin-1")
+    original = data[1].decode("latin-1") if against else None
+    _write_report(output, lambda index: from_programs(text, program, original, against, job,
+                                                      index, sample), mesh, quiet)
 
 
 @app.command()
 def simulate(
-    program: Annotated[str, typer.Argument(help="NC program to replay (any program).")],
+    program: Annotated[str, typer.Argument(help="NC program to replay (any program), or - "
+                                           "for stdin.")],
     against: Annotated[Optional[str], typer.Option(
         "--against", help="Also replay this program (e.g. the original) and compare.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="One JSON summary on stdout.")] = False,
@@ -538,27 +576,28 @@ def simulate(
     tool_point: ToolPoint = "tip", tool: Tool = None, rapid: Rapid = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, control: Control = None, decimal_point: DecimalPoint = None,
-    kinematics: KinematicsName = None,
+    quiet: Quiet = False, kinematics: KinematicsName = None,
 ) -> None:
     """Replay a program on a spindle that ramps at its real acceleration: time, fz, vc."""
+    from dataclasses import replace
+
     from .geometry import MeshIndex, load_stl
+    from .model import CuttingData
     from .simulate import simulate_program
 
-    try:
-        _check_outputs(color_by, csv, plot, plot_path)
-        job = make_job(**_job_options(locals()))
-        index = MeshIndex(load_stl(mesh)) if mesh else None
-        runs = []
-        for name in ([against] if against else []) + [program]:
-            text = _read(name).decode("latin-1")
-            report, series = simulate_program(text, job, index, path=name, sample_mm=sample)
-            if not runs and job.cutting is None:  # one target for all: the first program's
-                job = replace(job, cutting=CuttingData(report.vc_target_m_min,
-                                                       report.fz_target_mm))
-            runs.append((name, series, report))
-        _simulation_outputs(runs, as_json, csv, plot, plot_path, color_by)
-    except NcoptError as exc:
-        _fail(exc)
+    _check_outputs(color_by, csv, plot, plot_path)
+    job = make_job(**_job_options(locals()))
+    names = ([against] if against else []) + [program]
+    programs = read_programs(names)
+    index = MeshIndex(load_stl(mesh)) if mesh else None
+    runs = []
+    for name, data in zip(names, programs):
+        report, series = simulate_program(data.decode("latin-1"), job, index, path=name,
+                                          sample_mm=sample)
+        if not runs and job.cutting is None:  # one target for all: the first program's
+            job = replace(job, cutting=CuttingData(report.vc_target_m_min, report.fz_target_mm))
+        runs.append((name, series, report))
+    _simulation_outputs(runs, as_json, csv, plot, plot_path, color_by, quiet)
 
 
 COLOR_BY = ("s_rpm", "f_mm_min", "d_eff_mm", "vc_m_min")
@@ -574,10 +613,18 @@ def _check_outputs(color_by, csv, plot, plot_path) -> None:
             raise UsageError(f"{option} writes PNG, SVG or PDF: name the file .png, .svg or .pdf")
     for path in (csv, plot, plot_path):
         if path is not None and not Path(path).resolve().parent.is_dir():
-            raise _IoError("the folder to write into does not exist; create it first", str(path))
+            raise FileError("the folder to write into does not exist; create it first", str(path))
+    if (plot is not None or plot_path is not None) and not _has_matplotlib():
+        raise UsageError("plots need matplotlib: python -m pip install matplotlib (or, in "
+                         "ncopt's source folder, python -m pip install \".[plot]\")")
 
 
-def _simulation_outputs(runs, as_json, csv, plot, plot_path, color_by) -> None:
+def _has_matplotlib() -> bool:
+    from importlib.util import find_spec
+    return find_spec("matplotlib") is not None
+
+
+def _simulation_outputs(runs, as_json, csv, plot, plot_path, color_by, quiet=False) -> None:
     name, series, report = runs[-1]
     try:
         if csv is not None:
@@ -589,16 +636,18 @@ def _simulation_outputs(runs, as_json, csv, plot, plot_path, color_by) -> None:
             if plot_path is not None:
                 plot_toolpath(series, plot_path, color_by)
     except OSError as exc:
-        raise _IoError(f"cannot write the output: {exc.strerror or exc}", exc.filename) from None
+        raise FileError(f"cannot write the output: {exc.strerror or exc}; check the path",
+                        str(exc.filename)) from None
     if as_json:
+        import json
         out = {r[0]: r[2].to_dict() for r in runs} if len(runs) > 1 else report.to_dict()
         print(json.dumps(out, indent=2))
         return
-    for name, _, rep in runs:
+    for name, _, rep in runs if not quiet else ():
         print_simulation(rep, err)
 
 
-def print_simulation(r, console: Console) -> None:
+def print_simulation(r, console: "Console") -> None:
     """The simulation summary a technologist reads before sending a program."""
     say = lambda text: console.print(text, markup=False)  # noqa: E731
     say(f"{r.path}: cutting {r.cutting_time_min:.2f} min, rapids {r.rapid_time_min:.2f} min, "
@@ -623,41 +672,47 @@ def inspect(
     kinematics: KinematicsName = None,
 ) -> None:
     """Show what ncopt understands of a program before it changes anything."""
+    from .controls import CONTROLS
     from .inspect import inspect_text, render_inspection
+    from .stdio import stdout_console
 
-    try:
-        data = sys.stdin.buffer.read() if program == "-" else _read(program)
-        if control is not None and control not in CONTROLS:
-            raise UsageError(f"--dialect must be one of {', '.join(CONTROLS)}, not {control!r}")
-        info = inspect_text(data.decode("latin-1"), program, dialect=control,
-                            decimal_point=decimal_point, kinematics=check_name(kinematics))
-    except NcoptError as exc:
-        _fail(exc)
+    [data] = read_programs([program])
+    if control is not None and control not in CONTROLS:
+        raise UsageError(f"--dialect must be one of {', '.join(CONTROLS)}, not {control!r}")
+    from .kinematics import check_name
+
+    info = inspect_text(data.decode("latin-1"), program, dialect=control,
+                        decimal_point=decimal_point, kinematics=check_name(kinematics))
     if as_json:
+        import json
         print(json.dumps(info.to_dict(), indent=2))
     else:
-        render_inspection(info, Console(highlight=False, soft_wrap=True))
+        render_inspection(info, stdout_console(highlight=False, soft_wrap=True))
 
 
 @app.command()
 def diff(
-    original: Annotated[str, typer.Argument(help="The original program.")],
-    rewritten: Annotated[str, typer.Argument(help="The rewritten program.")],
+    original: Annotated[str, typer.Argument(help="The original program, or - for stdin.")],
+    rewritten: Annotated[str, typer.Argument(help="The rewritten program, or - for stdin.")],
     plain: Annotated[bool, typer.Option("--plain", help="Unified diff even on a terminal.")] = False,
+    no_pager: Annotated[bool, typer.Option("--no-pager", help="Print on the terminal, not "
+                                           "through $PAGER (less -R).")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing; the exit code "
+                                        "says whether the files differ.")] = False,
 ) -> None:
-    """Show which blocks changed: side by side on a terminal, a unified diff otherwise."""
-    from .diffview import render_side_by_side, write_unified
+    """Show which blocks changed: side by side on a terminal (paged), a unified diff otherwise.
 
-    try:
-        a = _read(original).decode("latin-1").splitlines()
-        b = _read(rewritten).decode("latin-1").splitlines()
-    except NcoptError as exc:
-        _fail(exc)
-    out = Console(highlight=False)
-    if plain or not out.is_terminal:
-        write_unified(original, rewritten, a, b, sys.stdout)
-    else:
-        render_side_by_side(original, rewritten, a, b, out)
+    Exit code 0 when the files are the same, 1 when they differ (as diff does).
+    """
+    from .diffview import show_diff
+
+    a, b = read_programs([original, rewritten])
+    if a == b:
+        return
+    if not quiet:
+        show_diff(original, rewritten, a.decode("latin-1").splitlines(),
+                  b.decode("latin-1").splitlines(), plain=plain, pager=not no_pager)
+    raise typer.Exit(DIFFERENT)
 
 
 @app.command()
@@ -665,41 +720,10 @@ def profiles(
     tools_file: ToolsFile = None,
 ) -> None:
     """List the machine, tool and cutting-data profiles found, and where from."""
-    from rich.table import Table
+    from .profiles import load, render_profiles
+    from .stdio import stdout_console
 
-    from .profiles import load, user_file
-
-    try:
-        found = load(tools_file=tools_file)
-    except NcoptError as exc:
-        _fail(exc)
-    out = Console(highlight=False)
-    out.print(f"profile files, later ones win (user file: {user_file()}; project file: "
-              "./ncopt.toml):", markup=False)
-    for src in found.sources:
-        out.print(f"  {src}", markup=False)
-    t = Table(title="machines")
-    for col in ("name", "accel rad/s^2", "max RPM", "control", "from"):
-        t.add_column(col)
-    for m in found.machines.values():
-        t.add_row(m.name, f"{m.accel_rad_s2:g}", f"{m.max_rpm:g}", m.control or "detected", m.source)
-    out.print(t)
-    t = Table(title="tools")
-    for col in ("T / name", "cutter", "from"):
-        t.add_column(col)
-    for key, (c, src) in found.tools.items():
-        kind = "ball" if c.is_ball else f"bull-nose r{c.corner_radius_mm:g}"
-        t.add_row(str(key), f"D{c.diameter_mm:g} {kind}, {c.teeth} teeth", src)
-    out.print(t)
-    t = Table(title="cutting data")
-    for col in ("material", "vc m/min", "fz mm", "from"):
-        t.add_column(col)
-    for name, (c, src) in found.cutting.items():
-        t.add_row(name, f"{c.vc_m_min:g}", f"{c.fz_mm:g}", src)
-    out.print(t)
-    if found.default_machine:
-        out.print(f"default machine: {found.default_machine[0]} ({found.default_machine[1]})",
-                  markup=False)
+    render_profiles(load(tools_file=tools_file), stdout_console(highlight=False))
 
 
 @app.command()
@@ -710,8 +734,14 @@ def version() -> None:
 
 def main() -> None:
     """Console entry point: ncopt errors become one located line and an exit code."""
+    signal.signal(signal.SIGTERM, interrupt)  # from the start: SIGTERM is an interrupt
+    if sys.argv[1:] in (["version"], ["--version"]):  # before typer builds its commands
+        sys.exit(_say_version())
     try:
         app()
     except NcoptError as exc:  # raised outside a command body
-        err.print(str(exc), markup=False)
+        say(str(exc))
         sys.exit(int(_exit_code(exc)))
+    except KeyboardInterrupt:  # before a command started
+        say("ncopt: interrupted")
+        sys.exit(int(Exit.INTERRUPTED))

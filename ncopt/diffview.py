@@ -2,13 +2,23 @@
 
 Streams: rows are rendered as they are found, unchanged runs are folded into
 one line with their count, so a 1M-line program never has its rendering
-built in memory.
+built in memory.  On a terminal the view goes through a pager as git's does:
+``$NCOPT_PAGER``, else ``$PAGER``, else ``less`` (with ``LESS=FRX`` unless LESS is
+set: colours pass, a short diff stays on the screen); an empty pager or ``cat``
+means none.  A reader that quits early (``q`` in less, ``| head``) ends the view
+quietly.
 """
 
 from __future__ import annotations
 
 import difflib
+import io
+import os
 import re
+import shutil
+import subprocess
+import sys
+from contextlib import contextmanager
 from dataclasses import dataclass
 from itertools import zip_longest
 from typing import Iterator, TextIO
@@ -58,7 +68,7 @@ def totals(a_lines: list[str], b_lines: list[str]) -> DiffTotals:
     return DiffTotals(max(len(a_lines), len(b_lines)), changed, s, f)
 
 
-_STAMP = re.compile(r"^\s*(?:\(|;)\s*ncopt \S+ T-?\d+ vc=")
+_STAMP = re.compile(r"^\s*(?:\(|;)\s*ncopt \S+ T-?\d+ (?:lines=\d+-\d+ )?vc=")  # 0.1 and later
 
 
 def _rows(a_lines: list[str], b_lines: list[str]) -> Iterator[tuple]:
@@ -152,7 +162,8 @@ def render_side_by_side(a_name: str, b_name: str, a_lines, b_lines, console: Con
             right.append(tb, style="dim")
         left.truncate(width, pad=True)
         right.truncate(width, pad=True)
-        row_text = Text(f"{na or '':>6} ", style="cyan")
+        row_text = Text()  # no base style: the line number's colour must not run on
+        row_text.append(f"{na or '':>6} ", style="cyan")
         row_text.append_text(left)
         row_text.append(" │ " if kind == "same" else " ┃ ", style="yellow" if kind == "change" else "dim")
         row_text.append_text(right)
@@ -165,3 +176,60 @@ def write_unified(a_name: str, b_name: str, a_lines, b_lines, out: TextIO) -> Di
     for line in difflib.unified_diff(a_lines, b_lines, a_name, b_name, lineterm="", n=CONTEXT):
         out.write(line + "\n")
     return totals(a_lines, b_lines)
+
+
+def show_diff(a_name: str, b_name: str, a_lines, b_lines, plain: bool = False,
+              pager: bool = True) -> None:
+    """The diff on stdout: side by side (through the pager) on a terminal, else unified."""
+    from .stdio import silence_stdout, stdout_console
+
+    out = stdout_console(highlight=False)
+    try:
+        if plain or not out.is_terminal:
+            write_unified(a_name, b_name, a_lines, b_lines, sys.stdout)
+            sys.stdout.flush()
+            return
+        with paged(out, enabled=pager) as console:
+            render_side_by_side(a_name, b_name, a_lines, b_lines, console)
+    except BrokenPipeError:  # the reader has seen enough
+        silence_stdout()
+
+
+def pager_command() -> str | None:
+    """The pager to use, or None: $NCOPT_PAGER, $PAGER, else less where it exists."""
+    for var in ("NCOPT_PAGER", "PAGER"):
+        if var in os.environ:
+            command = os.environ[var].strip()
+            return None if command in ("", "cat") else command
+    return "less" if shutil.which("less") else None
+
+
+@contextmanager
+def paged(out: Console, enabled: bool = True) -> Iterator[Console]:
+    """A console that writes into the pager (with out's width and colours), or out itself."""
+    command = pager_command() if enabled else None
+    if command is None:
+        yield out
+        return
+    env = {**os.environ, "LESS": os.environ.get("LESS", "FRX"), "LV": os.environ.get("LV", "-c")}
+    try:
+        proc = subprocess.Popen(command, shell=True, stdin=subprocess.PIPE, env=env)
+    except OSError:
+        yield out
+        return
+    stream = io.TextIOWrapper(proc.stdin, encoding=out.encoding or "utf-8", errors="replace")
+    from .stdio import stdout_console
+
+    console = stdout_console(file=stream, force_terminal=True, width=out.width,
+                             highlight=False, color_system=out.color_system,
+                             no_color=out.no_color)
+    try:
+        yield console
+    except BrokenPipeError:
+        pass
+    finally:
+        try:
+            stream.close()
+        except BrokenPipeError:
+            pass
+        proc.wait()

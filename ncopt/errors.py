@@ -59,3 +59,7 @@ class UsageError(NcoptError):
 
 class VerificationError(NcoptError):
     """A rewrite failed its own safety checks: nothing is written."""
+
+
+class FileError(NcoptError):
+    """A file (or stdin, stdout, a folder) cannot be read or written; names the path."""

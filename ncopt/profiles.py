@@ -28,7 +28,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .errors import UsageError
+from .errors import FileError, UsageError
 from .model import Cutter, CuttingData
 
 EXAMPLES = Path(__file__).resolve().parent / "data" / "examples.toml"
@@ -85,12 +85,31 @@ def user_file() -> Path:
 
 def search_paths(cwd: Path | None = None, tools_file: Path | None = None) -> list[Path]:
     """Profile files in the order they apply (later ones win)."""
-    paths = [EXAMPLES, user_file(), (cwd or Path.cwd()) / PROJECT_FILE]
+    try:
+        here = cwd or Path.cwd()
+    except OSError as exc:
+        raise FileError(f"cannot read the working folder: {exc.strerror}; change into a "
+                        "folder that exists", ".") from None
+    paths = [EXAMPLES, user_file(), here / PROJECT_FILE]
     if tools_file is not None:
-        if not Path(tools_file).is_file():
+        if not _is_file(Path(tools_file)):
             raise UsageError("the tools file does not exist; check --tools", str(tools_file))
         paths.append(Path(tools_file))
-    return [p for p in paths if p.is_file()]
+    return [p for p in paths if _is_file(p)]
+
+
+def _is_file(path: Path) -> bool:
+    """Whether a profile file is there; a folder that cannot be searched is an error (a
+    HOME of another user, as under sudo without -H), not a file that is missing."""
+    try:
+        return path.is_file()
+    except OSError as exc:
+        raise FileError(f"cannot read the profile: {exc.strerror}; {_UNREADABLE}",
+                        str(path)) from None
+
+
+_UNREADABLE = ("check the folder's permissions, or point HOME (or XDG_CONFIG_HOME) at a "
+               "folder of this user (sudo -H)")
 
 
 def load(cwd: Path | None = None, tools_file: Path | None = None) -> Profiles:
@@ -100,6 +119,9 @@ def load(cwd: Path | None = None, tools_file: Path | None = None) -> Profiles:
     for path in files:
         try:
             data = tomllib.loads(path.read_text(encoding="utf-8"))
+        except OSError as exc:
+            raise FileError(f"cannot read the profile: {exc.strerror}; {_UNREADABLE}",
+                            str(path)) from None
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
             raise UsageError(f"cannot read the profile: {exc}; fix the TOML", str(path)) from None
         src = str(path)
@@ -171,3 +193,36 @@ def _cutting(name: str, c: dict, src: str) -> CuttingData:
     if not isinstance(c, dict):
         raise UsageError(f"{what} must be a table [cutting.{name}]", src)
     return CuttingData(_number(c, "vc_m_min", what, src), _number(c, "fz_mm", what, src))
+
+
+def render_profiles(found: Profiles, console) -> None:
+    """What ``ncopt profiles`` prints: the files read and a table per kind of profile."""
+    from rich.table import Table
+
+    say = lambda text: console.print(text, markup=False)  # noqa: E731
+    say(f"profile files, later ones win (user file: {user_file()}; project file: "
+        f"./{PROJECT_FILE}):")
+    for src in found.sources:
+        say(f"  {src}")
+    t = Table(title="machines")
+    for col in ("name", "accel rad/s^2", "max RPM", "control", "from"):
+        t.add_column(col)
+    for m in found.machines.values():
+        t.add_row(m.name, f"{m.accel_rad_s2:g}", f"{m.max_rpm:g}", m.control or "detected",
+                  m.source)
+    console.print(t)
+    t = Table(title="tools")
+    for col in ("T / name", "cutter", "from"):
+        t.add_column(col)
+    for key, (c, src) in found.tools.items():
+        kind = "ball" if c.is_ball else f"bull-nose r{c.corner_radius_mm:g}"
+        t.add_row(str(key), f"D{c.diameter_mm:g} {kind}, {c.teeth} teeth", src)
+    console.print(t)
+    t = Table(title="cutting data")
+    for col in ("material", "vc m/min", "fz mm", "from"):
+        t.add_column(col)
+    for name, (c, src) in found.cutting.items():
+        t.add_row(name, f"{c.vc_m_min:g}", f"{c.fz_mm:g}", src)
+    console.print(t)
+    if found.default_machine:
+        say(f"default machine: {found.default_machine[0]} ({found.default_machine[1]})")

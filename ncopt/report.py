@@ -189,12 +189,12 @@ def render(data: ReportData) -> str:
     return _page(title, "\n".join(body), figures, get_plotlyjs())
 
 
-def write(path: str | Path, page: str) -> Path:
-    """Write a page atomically (a temporary file in the folder, then a rename)."""
-    from .batch import write_atomic
+def write(path: str | Path, page: str, make_parents: bool = False) -> Path:
+    """Write a page as ``-o`` writes a program (atomically, with the usual file mode)."""
+    from .fileio import write_output
 
     target = Path(path)
-    write_atomic(target, page.encode("utf-8"), make_parents=False)
+    write_output(target, page.encode("utf-8"), make_parents=make_parents)
     return target
 
 

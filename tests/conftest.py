@@ -79,3 +79,33 @@ def bowl_index(bowl_stl):
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20240611)
+
+
+def _without_dac_override() -> None:
+    """In the child before exec: drop CAP_DAC_OVERRIDE and CAP_DAC_READ_SEARCH from the
+    bounding set, so that root, too, obeys permission bits in the program it runs."""
+    import ctypes
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    for cap in (1, 2):
+        if libc.prctl(24, cap, 0, 0, 0) != 0:  # PR_CAPBSET_DROP
+            raise OSError(ctypes.get_errno(), "cannot drop a capability")
+
+
+@pytest.fixture(scope="session")
+def obeys_permissions():
+    """A preexec_fn for subprocess under which a chmod 000 file is really unreadable.
+
+    Not root: None (permission bits hold anyway).  Root: the capabilities that let root
+    ignore them are dropped in the child; a root without the right to drop them (no
+    CAP_SETPCAP) skips the test, the only case where permission bits cannot be tested.
+    """
+    if os.name != "posix" or os.geteuid() != 0:
+        return None
+    import subprocess
+
+    try:
+        subprocess.run(["true"], preexec_fn=_without_dac_override, check=True)
+    except (OSError, subprocess.SubprocessError):
+        pytest.skip("running as root without CAP_SETPCAP: permission bits do not bind")
+    return _without_dac_override

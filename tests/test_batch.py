@@ -247,6 +247,7 @@ def test_in_place_keeps_a_backup_and_replaces_atomically(small_folder, tmp_path)
     unchanged, failed = src / "Smiley001.nc", src / "Colt.tap"
     original = {p: p.read_bytes() for p in src.rglob("*") if p.is_file()}
     inode = {p: p.stat().st_ino for p in original}
+    mtime = {p: p.stat().st_mtime_ns for p in original}
     report = tmp_path / "report.json"
     result = invoke(["batch", src, *OPTIONS, "--in-place", "--report", report, "--jobs", "2"])
     assert result.exit_code == Exit.SOME_FAILED, result.stderr
@@ -256,7 +257,8 @@ def test_in_place_keeps_a_backup_and_replaces_atomically(small_folder, tmp_path)
     for p in ok:
         backup = p.with_name(p.name + ".bak")
         assert backup.read_bytes() == original[p]
-        assert backup.stat().st_ino == inode[p]  # the original file itself, renamed away
+        assert backup.stat().st_mtime_ns == mtime[p]  # the original as it was, a file of its own
+        assert backup.stat().st_nlink == 1
         assert p.stat().st_ino != inode[p]  # a new file renamed over it, never rewritten in place
         text = p.read_bytes().decode("latin-1")
         plain = without_stamp(original[p].decode("latin-1"), text)

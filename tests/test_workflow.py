@@ -23,7 +23,7 @@ from rich.console import Console
 from typer.testing import CliRunner
 
 import ncopt
-from ncopt.cli import Exit, app
+from ncopt.cli import DIFFERENT, Exit, app
 from ncopt.diffview import render_side_by_side
 from ncopt.parse import parse_text
 from ncopt.profiles import EXAMPLES
@@ -446,7 +446,7 @@ def test_diff_identical_files(tmp_path):
 def test_diff_of_a_rewrite_is_a_unified_diff_of_s_and_f_words(bowl_opt):
     _, opt = bowl_opt
     result = invoke(["diff", BOWL_MPF, opt])
-    assert result.exit_code == Exit.OK and result.stderr == ""
+    assert result.exit_code == DIFFERENT and result.stderr == ""  # as diff(1): they differ
     out = result.stdout.splitlines()
     assert out[:2] == [f"--- {BOWL_MPF}", f"+++ {opt}"]
     a = bowl_lines()
@@ -477,7 +477,7 @@ def test_diff_plain_is_the_default_when_not_a_terminal(bowl_opt):
     _, opt = bowl_opt
     default = invoke(["diff", BOWL_MPF, opt])
     plain = invoke(["diff", BOWL_MPF, opt, "--plain"])
-    assert plain.exit_code == default.exit_code == Exit.OK
+    assert plain.exit_code == default.exit_code == DIFFERENT
     assert plain.stdout == default.stdout and plain.stdout.startswith("--- ")
 
 
@@ -741,7 +741,8 @@ def test_usage_errors_do_not_name_a_phantom_input(args):
 def test_version_is_the_package_version_and_the_stamps(flat, tmp_path):
     result = invoke(["version"])
     assert result.exit_code == Exit.OK
-    assert result.stdout == f"{importlib.metadata.version('ncopt')}\n" == f"{ncopt.__version__}\n"
+    assert result.stdout == f"{importlib.metadata.version(ncopt.DISTRIBUTION)}\n" \
+        == f"{ncopt.__version__}\n"
     assert result.stderr == ""
     pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text())
     assert pyproject["project"]["version"] == ncopt.__version__

@@ -1,0 +1,155 @@
+"""stdin, stdout, stderr and signals at the edge of the command line.
+
+A write to stdout that fails (a closed pipe: ``ncopt rewrite x | head -1``; a full disk;
+stdout closed with ``>&-``) becomes a FileError naming ``<stdout>``, and stdout is then
+pointed at the null device so that the interpreter's last flush cannot print a
+traceback.  stderr is rich's console, made on first use: importing rich costs startup
+time that ``ncopt --help`` should not pay.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import signal
+import sys
+import threading
+from contextlib import contextmanager
+from typing import Callable, Iterator
+
+import typer
+
+from .errors import FileError, NcoptError, UsageError
+
+
+class _LazyConsole:
+    """rich's stderr console, made on first use."""
+
+    _console = None
+
+    def __getattr__(self, name):
+        if _LazyConsole._console is None:
+            from rich.console import Console
+            _LazyConsole._console = Console(stderr=True, highlight=False, soft_wrap=True)
+        return getattr(_LazyConsole._console, name)
+
+
+err = _LazyConsole()
+
+
+def stdout_console(**kwargs):
+    """A rich console (on stdout unless ``file`` says otherwise) whose closed pipe raises
+    BrokenPipeError, to be reported like any other write to stdout, instead of rich's
+    quiet exit 1."""
+    from rich.console import Console
+
+    class _Console(Console):
+        def on_broken_pipe(self) -> None:
+            self.quiet = True
+            raise BrokenPipeError(errno.EPIPE, os.strerror(errno.EPIPE))
+
+    return _Console(**kwargs)
+
+
+def say(text: str) -> None:
+    """One line on stderr; a closed or broken stderr loses it rather than raising."""
+    try:
+        err.print(text, markup=False)
+    except OSError:
+        pass
+
+
+def read_programs(names: list[str]) -> list[bytes]:
+    """The programs' bytes; ``-`` is stdin, for one of them at most."""
+    from .fileio import read_input
+
+    if names.count("-") > 1:
+        raise UsageError("only one program can come from stdin (-)")
+    return [read_input(name) for name in names]
+
+
+def write_stdout(data: bytes) -> None:
+    """A program's bytes on stdout, as they are."""
+    if sys.stdout is None:
+        raise FileError("standard output is closed; give -o FILE", "<stdout>")
+    try:
+        sys.stdout.flush()
+        out, rest = sys.stdout.buffer, memoryview(data)
+        while rest:  # a write cut short by the reader's going away says so only once
+            written = out.write(rest)
+            if not written:
+                raise OSError(errno.EIO, "nothing could be written")
+            rest = rest[written:]
+        out.flush()
+    except OSError as exc:
+        raise stdout_fault(exc) from None
+
+
+def flush_stdout() -> None:
+    """Flush what print() left in stdout's buffer; a failure is a FileError."""
+    if sys.stdout is None:
+        return
+    try:
+        sys.stdout.flush()
+    except OSError as exc:
+        raise stdout_fault(exc) from None
+
+
+def stdout_fault(exc: OSError) -> FileError:
+    """A write to stdout failed: the error to report; nothing more goes there."""
+    from .fileio import hint
+
+    silence_stdout()
+    return FileError(f"cannot write the output: {exc.strerror}; {hint(exc)}", "<stdout>")
+
+
+def silence_stdout() -> None:
+    """Point stdout at the null device, so the interpreter's last flush cannot fail."""
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, sys.stdout.fileno())
+        os.close(null)
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
+@contextmanager
+def command_faults(code_of: Callable[[NcoptError], int], interrupted: int) -> Iterator[None]:
+    """Run a command: an ncopt error, an interrupt (Ctrl-C or SIGTERM) or a failed write to
+    stdout becomes one line on stderr and the exit code ``code_of(error)`` or
+    ``interrupted``."""
+    previous = on_sigterm(interrupt)
+    try:
+        try:
+            yield
+        except typer.Exit:  # an exit code of the command's own (diff, batch)
+            flush_stdout()
+            raise
+        flush_stdout()  # what print() left in the buffer fails here, not at interpreter exit
+    except NcoptError as exc:
+        _fail(exc, code_of)
+    except KeyboardInterrupt:
+        say("ncopt: interrupted")
+        raise typer.Exit(interrupted) from None
+    except OSError as exc:  # not wrapped on its way: a write to stdout
+        _fail(stdout_fault(exc) if exc.filename is None else
+              FileError(f"{exc.strerror}; check the path", str(exc.filename)), code_of)
+    finally:
+        on_sigterm(previous)
+
+
+def _fail(exc: NcoptError, code_of: Callable[[NcoptError], int]) -> None:
+    say(str(exc))
+    raise typer.Exit(int(code_of(exc)))
+
+
+def interrupt(signum, frame):
+    """A signal handler: SIGTERM ends a command as Ctrl-C does."""
+    raise KeyboardInterrupt
+
+
+def on_sigterm(handler):
+    """Install a SIGTERM handler (main thread only); the handler it replaced."""
+    if handler is None or threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, handler)
