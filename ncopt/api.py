@@ -237,6 +237,8 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     if job.verify:
         verify(prog, tp, out, consumers, s_style, f_style, job, found.name, work.scope)
     summary = _summary(prog, tp, idx, work, targets, counts, mesh_edge, job)
+    summary = replace(summary, warnings=summary.warnings + _lag_warnings(prog, tp, idx, work,
+                                                                         targets, job))
     source = job.control_from if job.control else (
         f"detected from {len(found.marks)} mark{'s' if len(found.marks) > 1 else ''}"
         if found.marks else "no marks: generic")
@@ -464,6 +466,35 @@ def _summary(prog, tp, idx, work: Work, targets: Targets, counts, mesh_edge, job
                           no_cross_points=int(np.sum((est.confidence == NO_CROSS)
                                                      & sampled.contacts.cutting)))
     return summary
+
+
+def _lag_warnings(prog, tp, idx, work: Work, targets: Targets, job: Job) -> tuple:
+    """The simulator's check on the rewrite: the cutting blocks where the real spindle,
+    ramping at its acceleration toward the S words written, leaves fz out of its band."""
+    from .simulate import lagging_blocks
+
+    n = tp.n
+    counts = np.diff(np.concatenate((idx.first_point, [n])))
+    start = int(idx.first_point[0]) if idx.first_point.size else n
+    s_pt = tp.spindle_rpm.copy()
+    s_block = np.where(np.isfinite(targets.s_value), targets.s_value, tp.spindle_rpm[idx.first_point])
+    s_pt[start:] = np.repeat(s_block, counts)
+    rev = np.full(n, np.nan)
+    for p in work.plans:
+        lo, hi = p.window
+        check = p.blocks.cutting & p.blocks.planned & ~p.reduced & np.isfinite(p.f_mm_min)
+        blocks = np.arange(lo, hi)[check]
+        value = p.cutting.fz_mm * p.cutter.teeth
+        for b in blocks.tolist():  # a block's points: first_point[b] .. next first_point
+            rev[idx.first_point[b]:idx.first_point[b] + counts[b]] = value
+    bad = lagging_blocks(prog, tp, s_pt, _feed_after(tp, idx, targets), job.machine, rev,
+                         job.options.fz_tolerance)
+    if bad.size == 0:
+        return ()
+    lines = np.unique(tp.line[bad])
+    return (f"{prog.path}:{int(lines[0]) + 1}: the spindle cannot follow the S words at "
+            f"{lines.size} cutting blocks (simulated at its acceleration): fz leaves its "
+            f"+-{100 * job.options.fz_tolerance:g} % band while it catches up",)
 
 
 def _feed_after(tp: Toolpath, idx: planner.BlockIndex, targets: Targets) -> np.ndarray:

@@ -576,6 +576,9 @@ def simulate(
     tool_point: ToolPoint = "tip", tool: Tool = None, rapid: Rapid = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, control: Control = None, decimal_point: DecimalPoint = None,
+    judged_band: Annotated[Optional[float], typer.Option(
+        "--fz-band", help="fz band judged, percent (default: the band an ncopt stamp "
+        "records, else 2).")] = None,
     quiet: Quiet = False, kinematics: KinematicsName = None,
 ) -> None:
     """Replay a program on a spindle that ramps at its real acceleration: time, fz, vc."""
@@ -593,7 +596,9 @@ def simulate(
     runs = []
     for name, data in zip(names, programs):
         report, series = simulate_program(data.decode("latin-1"), job, index, path=name,
-                                          sample_mm=sample)
+                                          sample_mm=sample,
+                                          band=None if judged_band is None
+                                          else judged_band / 100.0)
         if not runs and job.cutting is None:  # one target for all: the first program's
             job = replace(job, cutting=CuttingData(report.vc_target_m_min, report.fz_target_mm))
         runs.append((name, series, report))
@@ -650,8 +655,9 @@ def _simulation_outputs(runs, as_json, csv, plot, plot_path, color_by, quiet=Fal
 def print_simulation(r, console: "Console") -> None:
     """The simulation summary a technologist reads before sending a program."""
     say = lambda text: console.print(text, markup=False)  # noqa: E731
-    say(f"{r.path}: cutting {r.cutting_time_min:.2f} min, rapids {r.rapid_time_min:.2f} min, "
-        f"total {r.total_time_min:.2f} min; highest S {r.max_rpm:.0f} RPM (line {r.max_rpm_line})")
+    say(f"{r.path}: feed moves {r.feed_moves_time_min:.2f} min ({r.cutting_time_min:.2f} min "
+        f"cutting), rapids {r.rapid_time_min:.2f} min, total {r.total_time_min:.2f} min; "
+        f"highest S {r.max_rpm:.0f} RPM (line {r.max_rpm_line})")
     say(f"  fz within +-{r.band_pct:g} % of {r.fz_target_mm:.4f} mm on {r.fz_in_band_pct:.2f} % "
         f"of the cut; most above {r.fz_max_over_pct:+.2f} % (line {r.fz_max_over_line}), "
         f"most below {-r.fz_min_under_pct:+.2f} % (line {r.fz_min_under_line})")
@@ -669,20 +675,32 @@ def inspect(
     program: Annotated[str, typer.Argument(help="NC program, or - for stdin.")],
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
     control: Control = None, decimal_point: DecimalPoint = None,
+    machine: MachineName = None, tools_file: ToolsFile = None, max_feed: MaxFeed = None,
     kinematics: KinematicsName = None,
 ) -> None:
-    """Show what ncopt understands of a program before it changes anything."""
+    """Show what ncopt understands of a program before it changes anything (read with the
+    same machine profile, dialect and decimal point as rewrite)."""
     from .controls import CONTROLS
     from .inspect import inspect_text, render_inspection
+    from .profiles import load
     from .stdio import stdout_console
 
+    profiles = load(tools_file=tools_file)
+    name = machine or (profiles.default_machine[0] if profiles.default_machine else None)
+    m = profiles.machine(name) if name else None
+    if m is not None:
+        control = control if control is not None else m.control
+        decimal_point = decimal_point if decimal_point is not None else m.decimal_point
+        max_feed = max_feed if max_feed is not None else m.max_feed_mm_min
+        kinematics = kinematics if kinematics is not None else m.kinematics
     [data] = read_programs([program])
     if control is not None and control not in CONTROLS:
         raise UsageError(f"--dialect must be one of {', '.join(CONTROLS)}, not {control!r}")
     from .kinematics import check_name
 
     info = inspect_text(data.decode("latin-1"), program, dialect=control,
-                        decimal_point=decimal_point, kinematics=check_name(kinematics))
+                        decimal_point=decimal_point, kinematics=check_name(kinematics),
+                        max_feed_mm_min=max_feed if max_feed is not None else float("inf"))
     if as_json:
         import json
         print(json.dumps(info.to_dict(), indent=2))

@@ -11,6 +11,7 @@ from .dialect import (HEIDENHAIN, SINUMERIK, apply_decimal_point,
                       check_convention_applies, decimal_point_issue, detect)
 from .interp import interpret
 from .kinematics import tilt_deg
+from .times import feed_minutes
 from .model import LineKind, Motion, Program
 from .parse import parse_text
 from .tooltable import ToolInfo, tool_table
@@ -50,7 +51,8 @@ class Inspection:
 
 def inspect_text(text: str, path: str = "<input>", *, dialect: str | None = None,
                  decimal_point: str | None = None,
-                 kinematics: str | None = None) -> Inspection:
+                 kinematics: str | None = None,
+                 max_feed_mm_min: float = float("inf")) -> Inspection:
     """Parse and interpret; raises a located NcoptError when the program is unreadable.
 
     ``dialect`` selects the grammar (None: the generic one) and, with the
@@ -92,7 +94,7 @@ def inspect_text(text: str, path: str = "<input>", *, dialect: str | None = None
         s_range_rpm=(float(s_on.min()), float(s_on.max())) if s_on.size else (0.0, 0.0),
         f_range_mm_min=(float(f_vals.min()), float(f_vals.max())) if f_vals.size else (0.0, 0.0),
         cut_length_mm=float(length[cut].sum()),
-        cut_time_min=float(np.sum(length[cut] / tp.feed_mm_min[1:][cut])),
+        cut_time_min=float(feed_minutes(tp, None, max_feed_mm_min).sum()),
         kinematics=tp.kinematics, tilt_range_deg=_tilt_range(tp, feed & known))
 
 

@@ -103,6 +103,8 @@ class SimReport:
     move; NaN when nothing cuts.
 
     cutting_time_min : feed blocks that cut at some sample
+    feed_moves_time_min : every timed feed move (``ncopt.times``): the cutting time that
+        inspect, rewrite and batch give for the same program
     feed_time_min : the other feed blocks (approach, retract, air)
     rapid_time_min, total_time_min
     cut_length_mm : length of the feed blocks that cut
@@ -123,6 +125,7 @@ class SimReport:
     sample_mm: float
     samples: int
     cutting_time_min: float
+    feed_moves_time_min: float  # every timed feed move (ncopt.times): the programs' own time
     feed_time_min: float
     rapid_time_min: float
     total_time_min: float
@@ -214,7 +217,7 @@ class SimSeries:
 
 
 def simulate_file(path: str | Path, job: Job, mesh_path: str | Path | None, *,
-                  sample_mm: float = 0.1, band: float = 0.02) -> tuple[SimReport, SimSeries]:
+                  sample_mm: float = 0.1, band: float | None = None) -> tuple[SimReport, SimSeries]:
     """Read a program and a part mesh, and simulate (see :func:`simulate_program`)."""
     text = Path(path).read_bytes().decode("latin-1")
     mesh_index = MeshIndex(load_stl(mesh_path)) if mesh_path else None
@@ -225,7 +228,7 @@ def simulate_file(path: str | Path, job: Job, mesh_path: str | Path | None, *,
 def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = None, *,
                      path: str = "<input>", sample_mm: float = 0.1,
                      contacts: Contacts | None = None,
-                     band: float = 0.02) -> tuple[SimReport, SimSeries]:
+                     band: float | None = None) -> tuple[SimReport, SimSeries]:
     """Replay a program on the machine model of ``job``.
 
     Parameters
@@ -246,8 +249,9 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
         ``ncopt.contacts.sample_points(toolpath, sample_mm)``, e.g.
         ``ncopt.contacts.contacts_for(...).contacts``: an original and its
         rewrite have the same toolpath and can share them.
-    band : float
-        Relative fz band for ``fz_in_band_pct`` and the lag check.
+    band : float or None
+        Relative fz band for ``fz_in_band_pct`` and the lag check (None: the band an
+        ncopt stamp records, else 0.02).
 
     Returns
     -------
@@ -277,6 +281,8 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
     runs = _spindle_runs(moves, job.machine.accel_rpm_s)
     series, weight, mv = _sample(tp, moves, runs, job, sample_mm, mesh_index, contacts, path)
     s_words = int(np.count_nonzero(prog.word_letter == ord("S")))
+    if band is None:  # the band the rewrite held, as its stamp says; else 2 %
+        band = stamp.band_pct / 100.0 if stamp is not None and stamp.band_pct else 0.02
     report = _report(path, moves, series, weight, mv, cut, band, sample_mm, s_words,
                      _warnings(path, tp, moves, job.machine, series))
     return report, series
@@ -369,15 +375,18 @@ def _evaluated_tool(prog: Program, tp: Toolpath, job: Job, path: str) -> tuple[C
     mask = tool == used[0] if used else np.zeros(tool.shape, dtype=bool)
     if job.cutter is not None:
         return job.cutter, mask
-    info = cutter_for(tool_table(prog), used[0] if used else -1, len(used))
-    stamp = _stamp_of(prog, used[0] if used else -1)
-    if info is None and stamp is not None:  # the cutter ncopt planned with, in mm
+    number = used[0] if used else -1
+    stamp = _stamp_of(prog, number)
+    if stamp is not None:  # the cutter ncopt planned with (mm, its teeth), as rewrite reads it
         return stamp.cutter, mask
+    if number in job.tool_library:
+        return job.tool_library[number], mask
+    info = cutter_for(tool_table(prog), number, len(used))
     if info is None or info.kind not in (BALL, BULL):
         raise UsageError("the program's comments do not describe a ball or bull-nose cutter; "
                          "give --diameter (and --corner-radius for a bull-nose)", path)
     inch = tp.line_inch is not None and bool(np.any(tp.line_inch))
-    return info.cutter(job.teeth, MM_PER_INCH if inch else 1.0), mask
+    return info.cutter(info.teeth or job.teeth, MM_PER_INCH if inch else 1.0), mask
 
 
 @dataclass(frozen=True)
@@ -412,6 +421,36 @@ def _spindle_runs(moves: _Moves, a: float) -> _Runs:
         w0.append(w)
         w = min(t, w + d) if w < t else max(t, w - d)
     return _Runs(first_move=first, w0_rpm=np.array(w0), of_move=np.cumsum(brk) - 1)
+
+
+def lagging_blocks(prog: Program, tp: Toolpath, s_rpm: np.ndarray, f_mm_min: np.ndarray,
+                   machine: Machine, rev_mm: np.ndarray, band: float) -> np.ndarray:
+    """Toolpath points (the moves ending there) where the real spindle, ramping toward the
+    commanded S at its acceleration, leaves fz out of its band at the move's start or end.
+
+    ``s_rpm``, ``f_mm_min``: (n,) S and F in force per point; ``rev_mm``: (n,) the target
+    feed per revolution fz z of each move to check (NaN: not checked).  The same machine model as
+    :func:`simulate_program`, at the ends of the moves only (fz is monotone inside a move:
+    F is constant and the spindle ramps one way), so it is cheap enough to run after
+    every rewrite.
+    """
+    job = Job(machine=machine)
+    moves = _move_table(prog, replace(tp, spindle_rpm=s_rpm, feed_mm_min=f_mm_min), job,
+                        np.ones(tp.n - 1, dtype=bool))
+    runs = _spindle_runs(moves, machine.accel_rpm_s)
+    run = runs.of_move
+    t0 = moves.t0_s - moves.t0_s[runs.first_move[run]]
+    a = machine.accel_rpm_s
+    start = spindle_ramp(runs.w0_rpm[run], moves.target_rpm, t0, a)
+    end = spindle_ramp(runs.w0_rpm[run], moves.target_rpm, t0 + moves.dt_s, a)
+    rev = rev_mm[1:]
+    check = np.isfinite(rev) & moves.feed & moves.known & (moves.target_rpm > 0)
+    speed = moves.speed_mm_min
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lo = speed / np.maximum(end, start) / rev - 1.0
+        hi = speed / np.minimum(end, start) / rev - 1.0
+    bad = check & ((hi > band * (1 + 1e-6) + 1e-9) | (lo < -band * (1 + 1e-6) - 1e-9))
+    return np.flatnonzero(bad) + 1
 
 
 def spindle_ramp(w0_rpm: np.ndarray, target_rpm: np.ndarray, tau_s: np.ndarray,
@@ -505,6 +544,7 @@ def _report(path, moves, series, weight, mv, cut: CuttingData, band, sample_mm, 
     return SimReport(
         path=path, vc_target_m_min=cut.vc_m_min, fz_target_mm=cut.fz_mm, band_pct=100 * band,
         sample_mm=sample_mm, samples=len(series), cutting_time_min=cutting_time,
+        feed_moves_time_min=cutting_time + feed_time,
         feed_time_min=feed_time, rapid_time_min=rapid_time,
         total_time_min=float(moves.dt_s.sum()) / 60.0,
         cut_length_mm=float(moves.length_mm[move_cuts].sum()),
@@ -533,10 +573,16 @@ def _where(x: np.ndarray, lines: np.ndarray) -> int:
 
 def _lag_stretches(series: SimSeries, weight: np.ndarray, cut: CuttingData,
                    band: float) -> tuple:
-    """Consecutive cut samples with fz out of band while the spindle is not at speed."""
+    """Consecutive cut samples with fz out of band while the spindle is not at speed, on
+    moves whose F means the target fz at the commanded S (a move the program runs at
+    another feed per tooth, a ramp or a plunge at its own feed, is off target by design,
+    not because the spindle lags)."""
     dev = series.fz_mm / cut.fz_mm - 1.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        meant = series.fz_mm * series.s_rpm / series.s_cmd_rpm / cut.fz_mm - 1.0
+    at_target = np.abs(meant) <= 2.0 * band
     lagging = np.abs(series.s_rpm - series.s_cmd_rpm) > _LAG_RPM
-    idx = np.flatnonzero(series.cutting & ~(np.abs(dev) <= band) & lagging)
+    idx = np.flatnonzero(series.cutting & ~(np.abs(dev) <= band) & lagging & at_target)
     if idx.size == 0:
         return ()
     new = np.concatenate(([True], np.diff(idx) > 1))

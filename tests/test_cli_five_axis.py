@@ -76,7 +76,9 @@ def test_the_machine_profile_gives_the_kinematics(tmp_path: Path):
     assert result.exit_code == Exit.OK, result.stderr
     assert "ncopt: 7 blocks, 3 cutting blocks planned" in result.stderr
     assert out.read_text().count("S") > ROTARY.count("S")
-    info = invoke(["inspect", prog, "--kinematics", "xyzac-trt"])
-    assert info.exit_code == Exit.OK
-    assert "5-axis: tool axes from the rotary axes through the xyzac-trt kinematics, tilted " \
-           "15.0..15.0 deg from +Z" in info.stdout
+    shown = "5-axis: tool axes from the rotary axes through the xyzac-trt kinematics, " \
+        "tilted 15.0..15.0 deg from +Z"
+    for how in (["--kinematics", "xyzac-trt"], ["--machine", "m", "--tools", profiles]):
+        info = invoke(["inspect", prog, *how])
+        assert info.exit_code == Exit.OK
+        assert shown in info.stdout

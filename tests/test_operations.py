@@ -388,3 +388,48 @@ def test_only_the_finish_changes_and_no_fz_rises(others, position, ramp_f):
     fz = f[ok] / (2 * p.s_low_rpm[ok])  # at the lowest real speed of the block: its highest
     assert np.all(fz <= prog_fz[ok] * band * (1 + 1e-9) + 1e-12)
     assert np.all(f[p.reduced] / (2 * p.s_low_rpm[p.reduced]) <= prog_fz[p.reduced] * (1 + 1e-9))
+
+
+# ------------------------------------------------------------ one truth (#13) ----
+def test_the_same_program_has_the_same_time_in_every_command(tmp_path):
+    """inspect, rewrite, simulate and batch count the same moves the same way: every feed
+    move whose ends are known, at its F (ncopt.times)."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from ncopt.cli import app
+    text = program(finish("PARALLEL1", 1), adaptive("ADAPTIVE2", 1), drill(2),
+                   tools=[BALL1, DRILL2])
+    src = tmp_path / "in" / "p.nc"
+    src.parent.mkdir()
+    src.write_text(text)
+    run = CliRunner().invoke
+    spindle = ["--accel", "227", "--max-rpm", "15000"]
+    inspected = json.loads(run(app, ["inspect", str(src), "--json"]).stdout)["cut_time_min"]
+    result = rewrite_text(text, JOB, str(src))
+    simulated = run(app, ["simulate", str(src), "--json", "--tool", "1", *spindle])
+    assert simulated.exit_code == 0, simulated.output
+    batch = tmp_path / "report.json"
+    run(app, ["batch", str(src.parent), "-o", str(tmp_path / "out"), *spindle, "--report",
+              str(batch)])
+    batched = json.loads(batch.read_text())[0]["time_before_min"]
+    assert result.summary.cut_time_before_min == pytest.approx(inspected, rel=1e-12)
+    assert batched == pytest.approx(inspected, rel=1e-12)
+    sim = json.loads(simulated.stdout)["feed_moves_time_min"]  # T1 judged, every move timed
+    assert sim == pytest.approx(inspected, rel=1e-9)
+
+
+def test_simulate_judges_a_rewrite_with_the_teeth_and_band_of_its_stamp():
+    """A rewrite for a 3-tooth cutter with a 1 % band: simulate, given neither, reads both
+    from the stamp (it used to judge it at 2 teeth: '0.00 % in band, +52.85 %')."""
+    from ncopt.model import PlanOptions
+    from ncopt.simulate import simulate_program
+    text = program(finish("PARALLEL1", 1), tools=[BALL1])
+    job = replace(JOB, cutter=Cutter(6.0, 3), shape_named=True,
+                  options=PlanOptions(fz_tolerance=0.01))
+    out = rewrite_text(text, job).text
+    assert " z=3 band=1 " in out
+    report, _ = simulate_program(out, Job(machine=MACHINE), path="out.nc")
+    assert report.band_pct == 1.0
+    assert report.fz_in_band_pct > 95.0 and report.fz_max_over_pct < 1.0

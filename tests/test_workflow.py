@@ -176,7 +176,8 @@ def test_simulate_prints_a_summary_that_agrees_with_its_json():
     assert text.stdout == ""  # the summary goes to stderr
     data = json.loads(invoke(["simulate", BOWL_MPF, *FAST, *SPINDLE, "--json"]).stdout)
     first, second, third = text.stderr.splitlines()
-    assert first == (f"{BOWL_MPF}: cutting {data['cutting_time_min']:.2f} min, rapids "
+    assert first == (f"{BOWL_MPF}: feed moves {data['feed_moves_time_min']:.2f} min "
+                     f"({data['cutting_time_min']:.2f} min cutting), rapids "
                      f"{data['rapid_time_min']:.2f} min, total {data['total_time_min']:.2f} "
                      "min; highest S 1393 RPM (line 10)")
     assert second.startswith(f"  fz within +-2 % of {data['fz_target_mm']:.4f} mm on "
@@ -258,7 +259,7 @@ def test_simulate_against_the_original(bowl_opt):
     # the text form names both programs, the original first
     text = invoke(["simulate", opt, "--against", BOWL_MPF, *FAST, *SPINDLE])
     heads = [line for line in text.stderr.splitlines() if not line.startswith("  ")]
-    assert [h.split(": cutting ")[0] for h in heads] == [str(BOWL_MPF), str(opt)]
+    assert [h.split(": feed moves ")[0] for h in heads] == [str(BOWL_MPF), str(opt)]
 
 
 def test_simulate_missing_program(tmp_path):

@@ -109,3 +109,16 @@ def test_a_rotary_only_move_keeps_its_feed_in_g93_and_g94():
         assert result.targets.f_value[k] == float(f[1:])
         assert result.text.splitlines()[line + 1].startswith("(ncopt") is False
         assert f"G1 C30 {f}" in result.text.splitlines()
+
+
+def test_g93_blocks_are_timed_as_their_own_minutes_rotary_only_too():
+    from ncopt.times import feed_minutes, untimed_moves
+
+    text = ("G21 G90 G94\nS3000 M3\nG0 X0 Y0 Z0 A0 C0\nG1 X1 F500\nG93\n"
+            "G1 X3 F250\nG1 C30 F12.5\nG1 X4 F100\nG94\nM30\n")
+    tp = interpret(parse_text(text, "t.nc"), kinematics="xyzac-trt")
+    minutes = feed_minutes(tp)
+    by_line = {int(ln): minutes[tp.line == ln].sum() for ln in (5, 6, 7)}
+    # 1 / F minutes each: 2 mm at F250, a table turn at F12.5, 1 mm at F100
+    assert by_line == pytest.approx({5: 1 / 250, 6: 1 / 12.5, 7: 1 / 100})
+    assert untimed_moves(tp) == 0

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from stl import mesh as stl_mesh
 
-from ncopt.api import Job, rewrite_file
+from ncopt.api import Job, rewrite_file, rewrite_text
 from ncopt.contacts import contacts_for
 from ncopt.errors import UsageError
 from ncopt.geometry import MeshIndex, load_stl
@@ -337,3 +337,22 @@ def test_cutting_with_the_spindle_stopped_is_reported(flat):
     assert np.all(ser.s_rpm == 0) and rep.fz_max_over_pct == math.inf
     assert rep.fz_in_band_pct == 0.0 and rep.to_dict()["fz_max_over_pct"] is None
     assert any("spindle stopped" in w for w in rep.warnings)
+
+
+def test_lagging_blocks_finds_an_s_jump_the_spindle_cannot_make():
+    """S1000 -> S10000 on a 10 mm move at F2000: the spindle (2168 RPM/s) needs 4.2 s, the
+    move takes 0.3 s: fz is far out of its band there; a move at the steady S is not."""
+    from ncopt.simulate import lagging_blocks
+    text = "G21 G90\nS1000 M3\nG0 X0 Y0 Z0\nG1 X10 F200\nG1 X20 S10000 F2000\nG1 X30\nM5\nM30\n"
+    prog = parse_text(text)
+    tp = interpret(prog)
+    rev = np.full(tp.n, 0.2)  # F/S = 0.2 mm per revolution is the target on every move
+    bad = lagging_blocks(prog, tp, tp.spindle_rpm, tp.feed_mm_min,
+                         Machine(accel_rad_s2=227, max_rpm=15000), rev, 0.02)
+    assert (tp.line[bad] + 1).tolist() == [5, 6]  # X20 (the jump) and X30 (still ramping)
+
+
+def test_a_rewrite_checks_its_own_spindle_and_finds_the_bowl_clean(bowl):
+    original, _, _, _ = bowl
+    result = rewrite_text(original, Job(cutter=BALL16, machine=Machine(227, 15000)), "bowl.mpf")
+    assert not [w for w in result.summary.warnings if "cannot follow" in w]
