@@ -10,10 +10,13 @@ Every ``*.nc *.ngc *.tap *.gcode`` under the corpus (recursively, with
 
 * dialect: ``ncopt.dialect.detect``
 * blocks: lines of kind WORDS; moves: lines that move (``ncopt.inspect.inspect_text``)
-* cutting: cutting blocks planned by ``rewrite_text`` without a mesh, job
-  ``Machine(227, 15000)``, ``Cutter(3, 2)``, ``CuttingData(60, 0.03)``; 0 when the
-  rewrite finds nothing to plan.  A program that cuts with several tools is rewritten
-  once per tool (``--tool N``, what the CLI asks for) and the counts are added up.
+* cutting: cutting blocks planned by ``rewrite_text`` without a mesh, as a user runs it:
+  ``Machine(227, 15000)``, the tools and cutting data the program gives; where it names
+  no diameter for a tool, ``Cutter(3, 2)`` for that tool (``--diameter 3 --tool N``, what
+  the CLI asks for) and the counts are added up; 0 when nothing is planned.
+* operations: a second table lists every operation of every program ncopt reads (name,
+  tool, lines, kind, planned or left and why), and checks that every line outside the
+  planned operations came out byte-identical.
 * left alone: the opaque constructs (``prog.opaque_reason``: o-words counted together,
   other keywords by name) and the stretches of feed moves ncopt does not plan (its
   "not planned" warnings)
@@ -52,7 +55,9 @@ from ncopt.model import Cutter, CuttingData, Machine  # noqa: E402
 
 CORPUS = (ROOT / "../shared/corpus").resolve()
 SUFFIXES = (".nc", ".ngc", ".tap", ".gcode")
-JOB = Job(machine=Machine(227, 15000), cutter=Cutter(3, 2), cutting=CuttingData(60, 0.03))
+JOB = Job(machine=Machine(227, 15000))  # as a user runs it: tools and data from the program
+FALLBACK = Cutter(3, 2)  # for a tool the program names no diameter of
+STAMP = re.compile(r"^\s*[(;]\s*ncopt \S+ T-?\d+ ")
 OWORD = re.compile(r"\s*/?\s*(?:N\s*[\d.]+\s*)?O\s*[\d<#\[]", re.IGNORECASE)
 MORE_STRETCHES = re.compile(r"(\d+) more stretches not planned")
 MESSAGE_CHARS = 80  # of the message, after file:line:col
@@ -73,6 +78,8 @@ class Row:
     rs274: str = ""
     rs274_accepts: bool | None = None
     rewrites: tuple = ()  # rewritten texts (one per tool), for the judge
+    operations: tuple = ()  # (operation, planned, why) of the rewrite(s)
+    untouched: bool = True  # every line outside the planned operations is the input's
 
     def cells(self, judge: bool) -> list[str]:
         num = lambda v: "-" if v is None else str(v)  # noqa: E731
@@ -115,29 +122,41 @@ def left_alone(text: str, info) -> str:
     return out
 
 
-def rewrite(text: str, rel: str, info) -> tuple[str, tuple]:
-    """Cutting blocks of the mesh-free rewrite (per tool for several), and the texts."""
+def rewrite(text: str, rel: str, info, row: Row) -> tuple[str, tuple]:
+    """Cutting blocks of the mesh-free rewrite (a second rewrite per tool with no known
+    diameter), and the texts; the operations and the untouched check go into ``row``."""
     try:
-        result = rewrite_text(text, JOB, rel)
-        return str(result.summary.cutting_blocks), (result.text,)
-    except NothingToPlan:
+        results = [rewrite_text(text, JOB, rel)]
+    except NothingToPlan as exc:
+        results, row.operations = [], exc.operations
+        if "no diameter known" not in exc.message:
+            return "0", ()
+        for tool in info.tools_used:
+            try:
+                results.append(rewrite_text(text, replace(JOB, cutter=FALLBACK, tool=tool), rel))
+            except NothingToPlan as exc_tool:  # why it is left with a diameter given
+                row.operations = exc_tool.operations or row.operations
+            except UsageError as exc_tool:
+                if "no feed moves with tool" not in exc_tool.message:
+                    raise
+    if not results:
         return "0", ()
-    except UsageError as exc:
-        if "several tools" not in exc.message:
-            raise
-    total, texts, tools = 0, [], list(info.tools_used)
-    for tool in tools:
-        try:
-            result = rewrite_text(text, replace(JOB, tool=tool), rel)
-        except NothingToPlan:
-            continue
-        except UsageError as exc:
-            if "no feed moves with tool" in exc.message:
-                continue
-            raise
-        total += result.summary.cutting_blocks
-        texts.append(result.text)
-    return f"{total} ({len(tools)} tools, one rewrite each)", tuple(texts)
+    row.operations = tuple(o for r in results for o in r.operations)
+    row.untouched = all(untouched(text, r) for r in results)
+    total = sum(r.summary.cutting_blocks for r in results)
+    suffix = f" ({len(results)} rewrites, --diameter 3 per tool)" if len(results) > 1 else ""
+    return f"{total}{suffix}", tuple(r.text for r in results)
+
+
+def untouched(text: str, result) -> bool:
+    """Every line outside the rewrite's planned operations is byte for byte the input's."""
+    a = text.splitlines(keepends=True)
+    b = [line for line in result.text.splitlines(keepends=True)
+         if not STAMP.match(line)]
+    if len(a) != len(b):
+        return False
+    editable = result.scope.editable
+    return all(a[i] == b[i] for i in range(len(a)) if not editable[i])
 
 
 def examine(path: Path, rel: str) -> Row:
@@ -156,7 +175,7 @@ def examine(path: Path, rel: str) -> Row:
             row.blocks, row.moves = info.blocks, info.moves
             row.left_alone = left_alone(text, info)
             try:
-                row.cutting, row.rewrites = rewrite(text, rel, info)
+                row.cutting, row.rewrites = rewrite(text, rel, info, row)
                 if row.cutting == "0":
                     row.status = "nothing"
             except NcoptError as exc:
@@ -267,8 +286,34 @@ def main(argv=None) -> int:
         broken = [r for r in rows if "REWRITE" in r.rs274]
         print(f"rewrites rs274 rejects or moves differently: {len(broken)}"
               + (": " + ", ".join(r.file for r in broken) if broken else ""))
+    print_operations(rows)
     print(f"({time.perf_counter() - t0:.0f} s)", file=sys.stderr)
-    return 1 if crashed else 0
+    touched = [r for r in rows if not r.untouched]
+    return 1 if crashed or touched else 0
+
+
+def print_operations(rows: list[Row]) -> None:
+    """Every operation ncopt found, planned or left and why; the untouched-lines check."""
+    print()
+    print(markdown(["file", "operation", "tool", "lines", "kind", "planned", "why"]))
+    print("|" + "---|" * 7)
+    kinds: collections.Counter = collections.Counter()
+    for r in rows:
+        for o in r.operations:
+            if o.kind == "no cut":
+                continue
+            tool = f"T{o.tool}" if o.tool >= 0 else "-"
+            print(markdown([r.file, o.name, tool, f"{o.first_line + 1}-{o.last_line + 1}",
+                            o.kind, "planned" if o.planned else "left", shorten(o.reason, 110)]))
+            kinds[("planned" if o.planned else "left", o.kind)] += 1
+    print()
+    planned = sum(n for (p, _), n in kinds.items() if p == "planned")
+    left = sum(n for (p, _), n in kinds.items() if p == "left")
+    print(f"operations: {planned} planned, {left} left; by kind: "
+          + "; ".join(f"{k} {p} {n}" for (p, k), n in sorted(kinds.items())))
+    touched = [r.file for r in rows if not r.untouched]
+    print("lines outside the planned operations byte-identical in every rewrite: "
+          + ("yes" if not touched else "NO: " + ", ".join(touched)))
 
 
 if __name__ == "__main__":

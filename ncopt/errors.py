@@ -50,7 +50,12 @@ class PlanningError(NcoptError):
 
 
 class NothingToPlan(PlanningError):
-    """No move of the program is one ncopt can plan (no ball/bull-nose cut, no known position)."""
+    """No move of the program is one ncopt can plan (no ball/bull-nose cut, no known position).
+
+    ``operations``: the program's operations, each with why it is left (empty where the
+    program was not read that far)."""
+
+    operations: tuple = ()
 
 
 class UsageError(NcoptError):

@@ -570,7 +570,9 @@ def plan_program(prog: Program, tp: Toolpath, idx: planner.BlockIndex, job,
                            job.machine, job.options, prog.path, intent),
             lines=_lines(stamps, op)))
     if not plans:
-        raise NothingToPlan(_nothing_why(ops, choices, tp), prog.path)
+        exc = NothingToPlan(_nothing_why(ops, choices, tp), prog.path)
+        exc.operations = tuple(ops)  # for reports: every operation and why it is left
+        raise exc
     return Work(tuple(ops), scope, plans, choices, views, point_op, fits)
 
 

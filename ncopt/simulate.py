@@ -125,7 +125,6 @@ class SimReport:
     sample_mm: float
     samples: int
     cutting_time_min: float
-    feed_moves_time_min: float  # every timed feed move (ncopt.times): the programs' own time
     feed_time_min: float
     rapid_time_min: float
     total_time_min: float
@@ -143,6 +142,7 @@ class SimReport:
     s_words: int
     lag: tuple = ()
     warnings: tuple = ()
+    feed_moves_time_min: float = float("nan")  # every timed feed move (ncopt.times)
 
     @property
     def spindle_lag_breaks_fz(self) -> bool:
