@@ -1,12 +1,15 @@
 """Whole-rewrite benchmark: ``api.rewrite_file`` on a large case, timed stage by stage.
 
-    python bench/bench_rewrite.py [--blocks N] [--triangles N] [--out DIR]
-    python bench/bench_rewrite.py --blocks 100000 --profile     # cProfile, top functions per stage
+    python bench/bench_rewrite.py [--case dense|paper|both] [--blocks N] [--triangles N] [--out DIR]
+    python bench/bench_rewrite.py --case paper --blocks 100000 --profile   # cProfile per stage
 
-The case (``bench/make_case.py``: bowl mould, D16 ball, zig-zag passes) is generated
-into ``DIR/b<N>_t<N>/`` on first use, in a child process so its memory does not count,
-and again whenever the generator sources change.  The job is the README's sample
-command (D16 ball, 2 teeth, 227 rad/s^2, 15000 RPM).
+Two cases (``bench/make_case.py``: bowl mould, D16 ball, zig-zag passes, the same
+1M-triangle mesh): ``dense``, 1M blocks of <= 0.11 mm (110 m of path), and ``paper``,
+1M blocks of the paper's 0.73-0.75 mm (750 m).  ``--case both`` (the default) runs each
+in its own child process, one after the other, so each gets its own figures and memory.
+A case is generated into ``DIR/b<N>_t<N>[_paper]/`` on first use, in a child process so
+its memory does not count, and again whenever the generator sources change.  The job is
+the README's sample command (D16 ball, 2 teeth, 227 rad/s^2, 15000 RPM).
 
 What runs is what the CLI runs: read the bytes, ``api.rewrite_file(..., data=...)``,
 write the result through a temporary file.  The stages are timed by wrapping, in this
@@ -54,10 +57,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-TARGET_SECONDS = 15.0  # with the mesh (the rewrite issue)
-TARGET_SECONDS_NO_MESH = 10.0  # without it, normals from the toolpath (the mesh-free issue)
-TARGET_BYTES = 1.5e9
-MB = 1e6  # figures in MB = 10^6 bytes; the 1.5 GB target is 1500 MB
+# issue 14: whole process including import, both cases, on the 2-core machine
+TARGET_SECONDS = 12.0  # with the 1M-triangle mesh
+TARGET_SECONDS_NO_MESH = 8.0  # without it, normals from the toolpath
+TARGET_BYTES = 1.2e9
+MB = 1e6  # figures in MB = 10^6 bytes; the 1.2 GB target is 1200 MB
+CASES = ("dense", "paper")
 GENERATOR_SOURCES = (ROOT / "bench" / "make_case.py", ROOT / "samples" / "make_bowl.py")
 
 # The functions api.rewrite_file reaches, timed where they are called.  A function
@@ -74,8 +79,9 @@ HOOKS = (
     ("tool table from comments", "ncopt.tooltable:tool_table"),
     ("nominal vc/fz", "ncopt.api:nominal_cutting_data"),
     ("contacts_for", "ncopt.contacts:contacts_for"),
-    ("sampling", "ncopt.contacts:sample_points"),
-    ("contacts (mesh)", "ncopt.geometry:contacts_from_mesh"),
+    ("sampling (even, before issue 14)", "ncopt.contacts:sample_points"),
+    ("sampling (where the geometry asks)", "ncopt.sampling:adaptive_samples"),
+    ("contacts (mesh)", "ncopt.geometry:mesh_contacts"),
     ("contacts (toolpath normals)", "ncopt.pathnormals:contacts_from_path"),
     ("blocks", "ncopt.planner:blocks_from_contacts"),
     ("planning", "ncopt.planner:plan"),
@@ -95,9 +101,10 @@ HOOKS = (
 # ---------------------------------------------------------------- the case
 
 
-def case_files(out_dir: Path, blocks: int, triangles: int) -> tuple[Path, Path]:
+def case_files(out_dir: Path, blocks: int, triangles: int,
+               spacing: str = "dense") -> tuple[Path, Path]:
     """Program and mesh of the benchmark case, generated if missing or stale."""
-    folder = out_dir / f"b{blocks}_t{triangles}"
+    folder = out_dir / (f"b{blocks}_t{triangles}" + ("" if spacing == "dense" else f"_{spacing}"))
     mpf, stl, stamp = folder / "bowl_bench.mpf", folder / "bowl_bench.stl", folder / "case.json"
     digest = hashlib.sha256(b"".join(p.read_bytes() for p in GENERATOR_SOURCES)).hexdigest()
     fresh = mpf.is_file() and stl.is_file() and stamp.is_file() \
@@ -105,7 +112,7 @@ def case_files(out_dir: Path, blocks: int, triangles: int) -> tuple[Path, Path]:
     if not fresh:
         print(f"generating the case in {folder} (bench/make_case.py) ...", flush=True)
         subprocess.run([sys.executable, str(ROOT / "bench" / "make_case.py"), str(folder),
-                        str(blocks), str(triangles)], check=True)
+                        str(blocks), str(triangles), spacing], check=True)
         stamp.write_text(json.dumps({"generator_sha256": digest}))
     return mpf, stl
 
@@ -165,8 +172,11 @@ class PssSampler(threading.Thread):
         while not self._stop_event.wait(self.interval_s):
             kids = []
             for path in glob.glob(f"/proc/{os.getpid()}/task/*/children"):
-                with open(path) as fh:
-                    kids += fh.read().split()
+                try:
+                    with open(path) as fh:
+                        kids += fh.read().split()
+                except OSError:  # the thread ended meanwhile
+                    pass
             if not kids:
                 continue
             total = _pss_kb("self") + sum(_pss_kb(k) for k in kids)
@@ -444,19 +454,25 @@ def print_targets(wall_s: float, rec: Recorder, pss: PssSampler, summary, e2e: d
               f"while workers ran, {pss.peak_children} then): {pss.peak_kb * 1024.0 / MB:.1f} MB")
     else:
         print("peak PSS with workers: no worker processes ran")
-    if profiled:
-        print("targets: not judged, the profiler inflates every figure")
-    else:
-        memory = max(rec.peak_rss, pss.peak_kb * 1024.0)
-        print(f"target  whole rewrite <= {target_s:.0f} s: {wall_s:.3f} s  "
-              f"{_verdict(wall_s <= target_s)}")
-        print(f"target  peak memory <= {TARGET_BYTES / MB:.0f} MB (larger of the above): "
-              f"{memory / MB:.1f} MB  {_verdict(memory <= TARGET_BYTES)}")
     if e2e is not None:
         print(f"\napi.rewrite_file, no hooks, fresh process: {e2e['rewrite_s']:.3f} s, "
               f"cpu {e2e['cpu_s']:.3f} s (+ import {e2e['import_s']:.3f} s; whole process "
               f"{e2e['process_s']:.3f} s), peak RSS {e2e['peak_rss'] / MB:.1f} MB, largest "
               f"worker {e2e['child_peak_rss'] / MB:.1f} MB, {e2e['edits']:,} edits")
+    if profiled:
+        print("targets: not judged, the profiler inflates every figure")
+        return
+    memory = max(rec.peak_rss, pss.peak_kb * 1024.0)
+    print(f"target  hooked rewrite <= {target_s:.0f} s: {wall_s:.3f} s  "
+          f"{_verdict(wall_s <= target_s)}")
+    print(f"target  hooked peak memory <= {TARGET_BYTES / MB:.0f} MB (larger of the above): "
+          f"{memory / MB:.1f} MB  {_verdict(memory <= TARGET_BYTES)}")
+    if e2e is not None:  # what the issue judges: the whole process, import included
+        fresh = max(e2e["peak_rss"], e2e["child_peak_rss"])
+        print(f"target  whole fresh process <= {target_s:.0f} s: {e2e['process_s']:.3f} s  "
+              f"{_verdict(e2e['process_s'] <= target_s)}")
+        print(f"target  fresh process peak RSS <= {TARGET_BYTES / MB:.0f} MB: "
+              f"{fresh / MB:.1f} MB  {_verdict(fresh <= TARGET_BYTES)}")
 
 
 def print_profiles(rec: Recorder, top: int, folder: Path) -> None:
@@ -493,6 +509,10 @@ def _git_state() -> str:
 
 
 def _header(args, mpf: Path, stl: Path, import_s: float, rec: Recorder) -> None:
+    print(f"\n==== case {args.case}: "
+          + ("1M blocks of <= 0.11 mm (110 m of path)" if args.case == "dense" else
+             "blocks of the paper's 0.73-0.75 mm (750 m of path at 1M blocks)")
+          + (", no mesh" if args.no_mesh else ", with the mesh") + " ====")
     import numpy as np
 
     import ncopt
@@ -514,6 +534,9 @@ def _header(args, mpf: Path, stl: Path, import_s: float, rec: Recorder) -> None:
 
 def _arguments(argv) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--case", choices=(*CASES, "both"), default="both",
+                    help="dense: blocks of <= 0.11 mm; paper: 0.75 mm; both (default): each "
+                         "in its own child process")
     ap.add_argument("--blocks", type=int, default=1_000_000)
     ap.add_argument("--triangles", type=int, default=1_000_000)
     ap.add_argument("--out", type=Path, default=Path(tempfile.gettempdir()) / "ncopt_bench",
@@ -523,7 +546,7 @@ def _arguments(argv) -> argparse.Namespace:
     ap.add_argument("--profile", action="store_true", help="cProfile every stage")
     ap.add_argument("--top", type=int, default=12, help="functions shown per stage")
     ap.add_argument("--no-mesh", action="store_true",
-                    help="rewrite without the mesh (normals from the toolpath; target 10 s)")
+                    help="rewrite without the mesh (normals from the toolpath; target 8 s)")
     ap.add_argument("--no-end-to-end", action="store_true",
                     help="skip the unhooked api.rewrite_file run in a fresh process")
     ap.add_argument("--end-to-end", nargs=2, metavar=("MPF", "STL"), help=argparse.SUPPRESS)
@@ -550,12 +573,24 @@ def run_hooked(args, mpf: Path, stl: Path, rec: Recorder):
     return wall, pss, result.summary, hashlib.sha256(result.text.encode("latin-1")).hexdigest()
 
 
+def run_cases(argv) -> int:
+    """``--case both``: each case in its own child process, output streamed."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    worst = 0
+    for case in CASES:
+        done = subprocess.run([sys.executable, __file__, *argv, "--case", case])
+        worst = max(worst, done.returncode)
+    return worst
+
+
 def main(argv=None) -> int:
     args = _arguments(argv)
     if args.end_to_end:
         end_to_end(*args.end_to_end)
         return 0
-    mpf, stl = case_files(args.out, args.blocks, args.triangles)
+    if args.case == "both":
+        return run_cases(argv)
+    mpf, stl = case_files(args.out, args.blocks, args.triangles, args.case)
     if args.no_mesh:
         stl = None
     t0 = time.perf_counter()

@@ -1,12 +1,17 @@
 """Generate a large benchmark case: a ~1M-block finishing program and a ~1M-triangle STL.
 
 Same part and generator as the committed sample (``samples/make_bowl.py``: analytic bowl,
-D16 ball, exact drop-cutter, zig-zag X-Z passes), with the stepover and the point spacing
-scaled down together (ratio 1.6 : 0.75 as in the sample) until the program has about
-``n_blocks`` blocks, and a finer grid for the mesh.
+D16 ball, exact drop-cutter, zig-zag X-Z passes), and a finer grid for the mesh.  Two
+spacings reach about ``n_blocks`` blocks:
 
-Run ``python bench/make_case.py [OUT_DIR] [N_BLOCKS] [N_TRIANGLES]`` (default
-``/tmp/ncopt_bench``, 1,000,000, 1,000,000).
+* ``dense`` (default): the stepover and the point spacing scaled down together (ratio
+  1.6 : 0.75 as in the sample): 1M blocks of <= 0.11 mm, about 110 m of path;
+* ``paper``: the paper's and the sample's 0.75 mm between points kept, only the stepover
+  shrunk (0.035 mm for 1M blocks: the same points as 46 sample layers each shifted by
+  1/46 of its 1.6 mm stepover): 1M blocks of 0.73-0.75 mm, about 750 m of path.
+
+Run ``python bench/make_case.py [OUT_DIR] [N_BLOCKS] [N_TRIANGLES] [dense|paper]``
+(default ``/tmp/ncopt_bench``, 1,000,000, 1,000,000, dense).
 """
 
 from __future__ import annotations
@@ -29,7 +34,13 @@ def _load_make_bowl():
     return module
 
 
-def choose_spacing_mm(n_blocks, radius_mm=8.0, ratio=1.6 / 0.75):
+SPACINGS = ("dense", "paper")
+PAPER_STEP_MM = 0.75
+"""Largest distance between points of the ``paper`` case (the sample's, within the paper's
+0.5-1 mm)."""
+
+
+def choose_spacing_mm(n_blocks, radius_mm=8.0, ratio=1.6 / 0.75, step_mm=None):
     """Stepover and point spacing that give a program of about ``n_blocks`` blocks.
 
     Parameters
@@ -40,6 +51,8 @@ def choose_spacing_mm(n_blocks, radius_mm=8.0, ratio=1.6 / 0.75):
         Ball radius (mm).
     ratio : float, optional
         Stepover divided by point spacing (the sample's 1.6 / 0.75).
+    step_mm : float or None, optional
+        Keep this point spacing and shrink only the stepover (``ratio`` unused).
 
     Returns
     -------
@@ -48,6 +61,12 @@ def choose_spacing_mm(n_blocks, radius_mm=8.0, ratio=1.6 / 0.75):
         corrections on the real layout land within a fraction of a percent.
     """
     mb = _load_make_bowl()
+    if step_mm is not None:
+        stepover = 1.6
+        for _ in range(3):
+            n = mb.count_blocks(mb.toolpath_layout(radius_mm, stepover, step_mm))
+            stepover = round(stepover * n / n_blocks, 4)
+        return stepover, step_mm
     step = 0.75
     for _ in range(3):
         stepover = round(ratio * step, 4)
@@ -56,7 +75,8 @@ def choose_spacing_mm(n_blocks, radius_mm=8.0, ratio=1.6 / 0.75):
     return round(ratio * step, 4), step
 
 
-def make_case(out_dir, n_blocks=1_000_000, n_triangles=1_000_000, radius_mm=8.0):
+def make_case(out_dir, n_blocks=1_000_000, n_triangles=1_000_000, radius_mm=8.0,
+              spacing="dense"):
     """Write ``bowl_bench.mpf`` (about ``n_blocks`` blocks) and ``bowl_bench.stl``.
 
     Parameters
@@ -70,6 +90,8 @@ def make_case(out_dir, n_blocks=1_000_000, n_triangles=1_000_000, radius_mm=8.0)
         ``n = round(sqrt(n_triangles / 2))`` cells per side over the +-95 mm land).
     radius_mm : float, optional
         Ball radius (mm), the paper's D16 by default.
+    spacing : {"dense", "paper"}, optional
+        How the blocks are spaced (module docstring).
 
     Returns
     -------
@@ -81,9 +103,13 @@ def make_case(out_dir, n_blocks=1_000_000, n_triangles=1_000_000, radius_mm=8.0)
     mb = _load_make_bowl()
     os.makedirs(out_dir, exist_ok=True)
 
-    stepover, step = choose_spacing_mm(n_blocks, radius_mm)
+    if spacing not in SPACINGS:
+        raise ValueError(f"spacing must be one of {SPACINGS}, got {spacing!r}")
+    stepover, step = choose_spacing_mm(n_blocks, radius_mm,
+                                       step_mm=PAPER_STEP_MM if spacing == "paper" else None)
     text = mb.make_program(radius_mm=radius_mm, stepover_mm=stepover, step_mm=step,
-                           title=f"ncopt benchmark: bowl mould finishing, about {n_blocks} blocks")
+                           title=f"ncopt benchmark: bowl mould finishing, about {n_blocks} blocks, "
+                                 f"{spacing} spacing")
     mpf = os.path.join(out_dir, "bowl_bench.mpf")
     mpf_bytes = mb.write_text(mpf, text)
     blocks = text.count("\nN") + (1 if text.startswith("N") else 0)
@@ -111,12 +137,13 @@ def make_case(out_dir, n_blocks=1_000_000, n_triangles=1_000_000, radius_mm=8.0)
 
 
 def main(argv=None):
-    """Command line: ``make_case.py [OUT_DIR] [N_BLOCKS] [N_TRIANGLES]``."""
+    """Command line: ``make_case.py [OUT_DIR] [N_BLOCKS] [N_TRIANGLES] [dense|paper]``."""
     argv = sys.argv[1:] if argv is None else argv
     out_dir = argv[0] if len(argv) > 0 else "/tmp/ncopt_bench"
     n_blocks = int(float(argv[1])) if len(argv) > 1 else 1_000_000
     n_tri = int(float(argv[2])) if len(argv) > 2 else 1_000_000
-    return make_case(out_dir, n_blocks, n_tri)
+    spacing = argv[3] if len(argv) > 3 else "dense"
+    return make_case(out_dir, n_blocks, n_tri, spacing=spacing)
 
 
 if __name__ == "__main__":

@@ -126,6 +126,17 @@ class Summary:
     passes: int = 0
     cut_time_other_min: float = float("nan")  # the whole program with the other s_changes
 
+    def to_dict(self) -> dict:
+        """The summary as plain JSON values (rewrite --json, batch reports)."""
+        from dataclasses import asdict
+
+        out = asdict(self)
+        out["time_change_pct"] = self.time_change_pct
+        out["mesh_fit"] = [dict(tool=t, **asdict(f)) for t, f in self.mesh_fit]
+        out["tools"] = [dict(tool=t, cutter=c, source=src) for t, c, src in self.tools]
+        out["skipped_tools"] = [dict(tool=t, why=w) for t, w in self.skipped_tools]
+        return _finite(out)
+
     @property
     def time_change_pct(self) -> float:
         if self.cut_time_before_min <= 0:
@@ -479,14 +490,13 @@ def _lag_warnings(prog, tp, idx, work: Work, targets: Targets, job: Job) -> tupl
     s_pt = tp.spindle_rpm.copy()
     s_block = np.where(np.isfinite(targets.s_value), targets.s_value, tp.spindle_rpm[idx.first_point])
     s_pt[start:] = np.repeat(s_block, counts)
-    rev = np.full(n, np.nan)
+    rev_block = np.full(idx.first_point.shape[0], np.nan)
     for p in work.plans:
         lo, hi = p.window
         check = p.blocks.cutting & p.blocks.planned & ~p.reduced & np.isfinite(p.f_mm_min)
-        blocks = np.arange(lo, hi)[check]
-        value = p.cutting.fz_mm * p.cutter.teeth
-        for b in blocks.tolist():  # a block's points: first_point[b] .. next first_point
-            rev[idx.first_point[b]:idx.first_point[b] + counts[b]] = value
+        rev_block[lo:hi][check] = p.cutting.fz_mm * p.cutter.teeth
+    rev = np.full(n, np.nan)
+    rev[start:] = np.repeat(rev_block, counts)
     bad = lagging_blocks(prog, tp, s_pt, _feed_after(tp, idx, targets), job.machine, rev,
                          job.options.fz_tolerance)
     if bad.size == 0:
@@ -570,6 +580,17 @@ def nominal_cutting_data(tp: Toolpath, selected: np.ndarray, cutter: Cutter,
     """vc and fz the program itself runs at its nominal diameter over the ``selected``
     points (mask): its S and its cutting feed (see :mod:`ncopt.plans`)."""
     return _plans.nominal_cutting_data(tp, np.flatnonzero(selected), cutter, path)
+
+
+def _finite(value):
+    """NaN and infinities as None: JSON has neither."""
+    if isinstance(value, float):
+        return value if np.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    return value
 
 
 def _describe(cutter: Cutter) -> str:

@@ -59,6 +59,8 @@ class FileReport:
     backup: str = ""  # in place: the backup made of the version replaced
     report: str = ""  # the file's HTML page (batch --report index.html)
     report_error: str = ""  # why it has none
+    summary: dict | None = None  # the rewrite's summary (ncopt.api.Summary.to_dict)
+    operations: tuple = ()  # (name, planned, why) of every operation, whether planned or not
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -156,7 +158,9 @@ def process_one(task: Task) -> FileReport:
         s = result.summary
         done = FileReport(src, target, "ok", s.blocks, s.s_words, s.f_words,
                           s.cut_time_before_min, s.cut_time_after_min, len(s.warnings),
-                          backup=str(backup or ""))
+                          backup=str(backup or ""), summary=s.to_dict(),
+                          operations=tuple((o.name, o.planned, o.reason)
+                                           for o in s.operations))
         if task.page:
             from .report import write_file_page
             written, why = write_file_page(task.page, result, data, src, target, task.job,
@@ -169,7 +173,9 @@ def process_one(task: Task) -> FileReport:
                 write_output(Path(target), data, make_parents=True)
         except FileError as write_exc:
             return _failed(task, str(write_exc))
-        return FileReport(src, target, "unchanged", error=exc.message)
+        return FileReport(src, target, "unchanged", error=exc.message,
+                          operations=tuple((o.name, o.planned, o.reason)
+                                           for o in getattr(exc, "operations", ())))
     except FileError as exc:  # names the output, or the file replaced in place
         return _failed(task, str(exc))
     except NcoptError as exc:

@@ -344,6 +344,9 @@ def rewrite(
     allowance_along: AllowanceAlong = "normal", operations: Operations = None,
     shape: Shape = None, stock: Stock = "0", report: ReportFile = None, quiet: Quiet = False,
     kinematics: KinematicsName = None,
+    as_json: Annotated[bool, typer.Option(
+        "--json", help="The summary as one JSON object on stderr instead of text (stdout "
+        "stays the program).")] = False,
 ) -> None:
     """Rewrite a program's S and F words; every other byte stays as it is."""
     from .api import rewrite_file
@@ -368,7 +371,10 @@ def rewrite(
         from .report import from_rewrite
         _write_report(report, lambda index: from_rewrite(
             result, data.decode("latin-1"), input, output or "-", job, index), mesh, quiet)
-    if not quiet:
+    if as_json:
+        import json
+        say(json.dumps(result.summary.to_dict(), indent=2))
+    elif not quiet:
         print_summary(result.summary, err)
 
 

@@ -1,10 +1,13 @@
 """Toolpath -> contacts: where the cutter touches the part, per sample point.
 
-With a mesh, every move is sampled at most ``sample_mm`` apart and the
-contacts come from closest-point queries (:mod:`ncopt.geometry`).  Without a
-mesh, the CL points themselves are the samples and the normals come from the
-toolpath's own shape (:mod:`ncopt.pathnormals`); between two points the
-normal is their interpolation, so no interior samples are needed.
+With a mesh, the planner's samples are every block end and, inside a move, only
+where the geometry asks for them (:mod:`ncopt.sampling`), and the contacts come
+from closest-point queries (:mod:`ncopt.geometry`); a 5-axis toolpath is sampled
+evenly, at most ``AXIS_SAMPLE_MM`` apart.  Without a mesh, the CL points
+themselves are the samples and the normals come from the toolpath's own shape
+(:mod:`ncopt.pathnormals`); between two points the normal is their
+interpolation, so no interior samples are needed.  ``sample_points`` spaces
+samples evenly (the simulator's), at most ``MAX_SAMPLES_PER_MOVE`` per move.
 
 The cutter centre is the programmed point moved ``tools.center_offset_mm``
 along the tool axis: +Z, or in 5 axes ``Toolpath.tool_axis`` (between two
@@ -20,10 +23,12 @@ import numpy as np
 
 from .geometry import MeshIndex, mesh_contacts
 from .kinematics import KINEMATICS, blend
+from .memory import release_freed_memory
 from .model import Contacts, Cutter, Toolpath
 from .pathnormals import (ONE_SIDED, ONE_SIDED_TILT_DEG, PathNormals, contacts_from_path,
                           path_normals, tilt_from_axis)
 from .remaining import r_eff_material_mm
+from .sampling import Probe, Refinement, adaptive_samples
 from .tools import center_offset_mm, r_eff_mm
 
 
@@ -39,6 +44,10 @@ AXIS_SAMPLE_MM = 0.25
 # much steeper (0.5: vc +0.4/+0.6 %, 1.9/1.8 % above the optimum; 1.0: +0.2 %, 2.3/2.6 %).
 RUN_END_TILT_DEG = 0.5
 
+# Evenly spaced samples stop at this many per move: a longer move is sampled every
+# length / MAX_SAMPLES_PER_MOVE (10 m at 0.1 mm; memory stays bounded by the moves).
+MAX_SAMPLES_PER_MOVE = 100_000
+
 
 @dataclass(frozen=True)
 class Sampled:
@@ -51,14 +60,21 @@ class Sampled:
     axis: np.ndarray | None = None  # (m, 3) unit tool axis per sample; None: +Z
 
 
+def samples_per_move(tp: Toolpath, sample_mm: float) -> np.ndarray:
+    """(n-1,) evenly spaced samples of each move: at most ``sample_mm`` apart, at
+    least one, at most ``MAX_SAMPLES_PER_MOVE``."""
+    seg = np.linalg.norm(np.diff(tp.xyz_mm, axis=0), axis=1)
+    return np.clip(np.ceil(seg / sample_mm), 1, MAX_SAMPLES_PER_MOVE).astype(np.int64)
+
+
 def sample_fractions(tp: Toolpath, sample_mm: float) -> tuple[np.ndarray, np.ndarray]:
     """Per sample: the toolpath point whose move it lies on, and how far along (0..1].
 
-    Samples are at most ``sample_mm`` apart and end on each CL point; the first
-    sample is point 0 itself (fraction 1).
+    Samples are at most ``sample_mm`` apart (``length / MAX_SAMPLES_PER_MOVE`` on a
+    longer move) and end on each CL point; the first sample is point 0 itself
+    (fraction 1).
     """
-    seg = np.linalg.norm(np.diff(tp.xyz_mm, axis=0), axis=1)
-    n_per = np.maximum(np.ceil(seg / sample_mm).astype(np.int64), 1)
+    n_per = samples_per_move(tp, sample_mm)
     point = np.concatenate(([0], np.repeat(np.arange(1, tp.n), n_per)))
     offsets = np.concatenate(([0], np.cumsum(n_per)))
     k = np.arange(1, offsets[-1] + 1) - np.repeat(offsets[:-1], n_per)
@@ -67,7 +83,8 @@ def sample_fractions(tp: Toolpath, sample_mm: float) -> tuple[np.ndarray, np.nda
 
 
 def sample_points(tp: Toolpath, sample_mm: float) -> tuple[np.ndarray, np.ndarray]:
-    """Points along every move, at most ``sample_mm`` apart, ending on each CL point.
+    """Points along every move, at most ``sample_mm`` apart (see
+    :func:`sample_fractions`), ending on each CL point.
 
     Returns xyz (m, 3) in mm and, per sample, the index of the toolpath point
     whose move it lies on (point 0 for the start point).
@@ -123,6 +140,16 @@ def path_contacts_at_samples(tp: Toolpath, cutter: Cutter, selected: np.ndarray,
     return Contacts(cc_mm=cc, normal=normal, r_eff_mm=r, cutting=at_points.cutting[point])
 
 
+def mesh_contacts_at_samples(tp: Toolpath, cutter: Cutter, mesh_index: MeshIndex,
+                             sample_mm: float, tol_mm: float) -> Contacts:
+    """Contacts from the mesh on every sample of :func:`sample_points` (the simulator's
+    evenly spaced samples: an original and its rewrite can share them)."""
+    xyz, _ = sample_points(tp, sample_mm)
+    axis = sample_axes(tp, sample_mm)
+    return mesh_contacts(xyz + centre_offsets(tp, cutter, axis), mesh_index, cutter, tol_mm,
+                         axis=axis).contacts
+
+
 def air_moves(tp: Toolpath) -> np.ndarray:
     """(n,) bool: feed moves that cannot be cutting when no mesh says otherwise:
     plunges and retracts (within 11 deg of vertical, or of the tool axis at their end).
@@ -151,17 +178,34 @@ class Method:
 
 def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index: MeshIndex | None,
                  sample_mm: float, tol_mm: float, method: Method = Method(),
-                 stock_mm: float = 0.0) -> Sampled:
+                 stock_mm: float = 0.0, *, r_floor_mm: float = 0.0) -> Sampled:
     """Contacts of ``cutter`` along the toolpath, from the mesh if there is one
-    (``stock_mm``: the allowance the program leaves on the mesh)."""
-    if mesh_index is not None:
-        if tp.tool_axis is not None:
-            sample_mm = min(sample_mm, AXIS_SAMPLE_MM)
+    (``stock_mm``: the allowance the program leaves on the mesh).
+
+    With a mesh: every block end of the ``selected`` moves and, inside them, samples
+    where the geometry asks for them (:mod:`ncopt.sampling`; ``sample_mm`` is the
+    longest interval between samples where the tool cuts; below ``r_floor_mm`` the
+    requirement is capped at S_max, so R_eff differences there need no samples).
+    A 5-axis toolpath is sampled evenly, at most ``AXIS_SAMPLE_MM`` apart: the
+    contact moves along the ball as the axis turns, which the adaptive refinement
+    (built on a fixed axis) does not look for.
+    """
+    release_freed_memory()  # the interpreter's and the mesh loading's leftovers
+    if mesh_index is not None and tp.tool_axis is not None:
+        sample_mm = min(sample_mm, AXIS_SAMPLE_MM)
         xyz, point = sample_points(tp, sample_mm)
         axis = sample_axes(tp, sample_mm)
         found = mesh_contacts(xyz + centre_offsets(tp, cutter, axis), mesh_index, cutter, tol_mm,
                               stock_mm=stock_mm, axis=axis)
         sampled = Sampled(found.contacts, point, gap_mm=found.gap_mm, axis=axis)
+    elif mesh_index is not None:
+        offset = centre_offsets(tp, cutter, None)
+        ref = Refinement(coarse_mm=sample_mm, r_floor_mm=r_floor_mm, contact_tol_mm=tol_mm)
+        got = adaptive_samples(tp.xyz_mm + offset, selected,
+                               _mesh_probe(mesh_index, cutter, tol_mm, stock_mm), ref)
+        p = got.probe
+        sampled = Sampled(Contacts(cc_mm=p.cc_mm, normal=p.normal, r_eff_mm=p.r_eff_mm,
+                                   cutting=p.cutting), got.point, gap_mm=p.gap_mm)
     else:
         cutting = selected & ~air_moves(tp)
         if tp.tool_axis is None:
@@ -173,6 +217,7 @@ def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index:
         sampled = Sampled(contacts, np.arange(tp.n), estimate, axis=tp.tool_axis)
     if method.name == "material":
         sampled = replace(sampled, contacts=_with_material(tp, cutter, sampled, method))
+    release_freed_memory()
     return sampled
 
 
@@ -208,6 +253,21 @@ def _recomputed(est: PathNormals, cutter: Cutter, centres, axis, cutting,
     r_eff = r_eff_mm(cutter, tilt_from_axis(est.normal, tilt, axis), axis)
     return Contacts(cc_mm=centres - cutter.corner_radius_mm * est.normal, normal=est.normal,
                     r_eff_mm=r_eff, cutting=cutting.copy())
+
+
+def _mesh_probe(mesh_index: MeshIndex, cutter: Cutter, tol_mm: float, stock_mm: float = 0.0):
+    """The query :func:`ncopt.sampling.adaptive_samples` makes of the mesh."""
+    flat_mm = cutter.radius_mm - cutter.corner_radius_mm
+
+    def query(centers_mm: np.ndarray) -> Probe:
+        mc = mesh_contacts(centers_mm, mesh_index, cutter, tol_mm, stock_mm=stock_mm)
+        c = mc.contacts
+        # a bull-nose's clearance is searched over its disc near the part only; the
+        # centre's distance less the disc radius bounds it from below everywhere
+        return Probe(c.r_eff_mm, c.normal, c.cc_mm, mc.gap_mm - flat_mm, c.cutting,
+                     mc.gap_mm)
+
+    return query
 
 
 def _with_material(tp: Toolpath, cutter: Cutter, sampled: Sampled, method: Method) -> Contacts:

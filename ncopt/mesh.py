@@ -67,11 +67,18 @@ def mesh_from_triangles(tri_mm: np.ndarray, merge_tol_mm: float = 1e-6) -> Mesh:
     Mesh
         Shared corners are shared vertices; triangles that collapse are dropped.
     """
-    pts = np.asarray(tri_mm, dtype=np.float64).reshape(-1, 3)
-    key = np.round(pts / merge_tol_mm).astype(np.int64)
-    order = np.lexsort(key.T[::-1])
+    pts = np.asarray(tri_mm).reshape(-1, 3)
+    if not np.issubdtype(pts.dtype, np.floating):
+        pts = pts.astype(np.float64)
+    # column by column, the sorted keys once: 1M triangles peak ~250 MB lower
+    key = np.empty(pts.shape, dtype=np.int64)
+    for c in range(3):
+        key[:, c] = np.round(pts[:, c].astype(np.float64) / merge_tol_mm)
+    order = np.lexsort((key[:, 2], key[:, 1], key[:, 0]))
+    key = key[order]
     new = np.ones(len(order), dtype=bool)
-    new[1:] = np.any(key[order[1:]] != key[order[:-1]], axis=1)
+    new[1:] = np.any(key[1:] != key[:-1], axis=1)
+    del key
     inverse = np.empty(len(order), dtype=np.int64)
     inverse[order] = np.cumsum(new) - 1
     F = inverse.reshape(-1, 3)
@@ -124,7 +131,8 @@ def load_stl(path: str | os.PathLike, merge_tol_mm: float = 1e-6) -> Mesh:
     except _STL_READ_ERRORS as exc:
         raise MeshError(f"not a readable STL file ({exc}); export the part again",
                         path=str(p)) from exc
-    tri = np.concatenate([m.vectors for m in parts]) if parts else np.zeros((0, 3, 3))
+    tri = (parts[0].vectors if len(parts) == 1 else
+           np.concatenate([m.vectors for m in parts]) if parts else np.zeros((0, 3, 3)))
     if tri.shape[0] == 0:
         raise MeshError("the STL holds no triangles; export the part again", path=str(p))
     if not np.all(np.isfinite(tri)):
@@ -133,6 +141,31 @@ def load_stl(path: str | os.PathLike, merge_tol_mm: float = 1e-6) -> Mesh:
     if mesh.n_faces == 0:
         raise MeshError("every triangle of the STL is degenerate", path=str(p))
     return mesh
+
+
+def spatial_order(points_mm: np.ndarray, cell_mm: float = 0.5) -> np.ndarray:
+    """Indices that sort points along a Z-order (Morton) curve of ``cell_mm`` cells.
+
+    Closest-point queries in this order run through the BVH with warm caches: the
+    paper's programs put points 0.75 mm apart along passes a fraction of a mm apart,
+    and in path order fcpw took 12.6-12.9 s CPU for 1M of them, in this order 7.0-8.5
+    s (points 0.11 mm apart: 9.2-9.7 s either way).  Coordinates wrap every 2^21
+    cells (1 km at 0.5 mm): the order stays a permutation.
+    """
+    if points_mm.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64)
+    g = np.floor((points_mm - points_mm.min(axis=0)) / cell_mm)
+    g = np.nan_to_num(g, nan=0.0, posinf=0.0).astype(np.int64) & 0x1FFFFF
+    code = np.zeros(points_mm.shape[0], dtype=np.int64)
+    for axis in range(3):
+        x = g[:, axis]
+        x = (x | (x << 32)) & 0x1F00000000FFFF
+        x = (x | (x << 16)) & 0x1F0000FF0000FF
+        x = (x | (x << 8)) & 0x100F00F00F00F00F
+        x = (x | (x << 4)) & 0x10C30C30C30C30C3
+        x = (x | (x << 2)) & 0x1249249249249249
+        code |= x << axis
+    return np.argsort(code, kind="stable")
 
 
 class EdgeLengths(NamedTuple):

@@ -325,7 +325,8 @@ class PlanOptions:
     planner : ``"lookahead"`` (default) or ``"forward"`` (the paper's flow chart)
     min_rpm_step : emit S only when it changes by at least this many RPM
     fz_tolerance : allowed relative fz drift inside a block while the spindle ramps
-    sample_mm : longest distance between contact samples along a block, mm
+    sample_mm : longest distance between mesh samples where the tool cuts, mm (every block
+        end is sampled, and more where R_eff curves: :mod:`ncopt.sampling`)
     f_quantum_mm_min : resolution of the F words written (1 for ``F279``), mm/min: F is
         rounded down to it, which the fz band must absorb
     fz_policy : ``"centred"`` (default): F from the harmonic mean of the block's lowest and

@@ -39,7 +39,7 @@ from scipy.spatial import cKDTree
 from .model import Cutter, LineKind, Motion, Program, Toolpath
 
 FINISH_3D, FINISH_ZLEVEL = "3D surface finishing", "Z-level finishing"
-ROUGH_LEVELS, CLEARING, TWO_D = "roughing levels", "area clearing", "2D (one Z level)"
+ROUGH_LEVELS, CLEARING, TWO_D = "roughing levels", "area clearing", "2D contour"
 ISOLATED, CANNED, NO_CUT, FLAT_TOOL = "isolated passes", "canned cycles", "no cut", "tool"
 STAMPED, LEFT_BEFORE = "planned before (ncopt stamp)", "left before (ncopt stamp)"
 PLANNED_KINDS = (FINISH_3D, FINISH_ZLEVEL)
@@ -51,12 +51,14 @@ NEIGHBOUR_SHARE = 0.5
 ZLEVEL_STEP_D = 0.15  # constant-Z levels at most this many diameters apart: finishing
 INTERIOR_SHARE = 0.25  # a level whose cells are this often surrounded: an area is cleared
 MAX_SAMPLES = 60000
+RETRACE_SAMPLES = 15000  # samples judged for vertical walls (each looks at 48 moves)
 OTHER_PASS_RATIO = 3.0  # path distance > ratio * straight distance: another pass
 VERTICAL = 0.98  # the nearest other pass this close to straight above: a retraced contour
 RETRACE_SHARE = 0.6
 # moves slower than this share of the operation's typical feed are entries (ramps,
 # plunges, lead-ins at a reduced feed), not its surface
 SLOW_FEED = 0.6
+MIN_PART_D = 20.0  # a part of an operation cuts at least this many diameters
 
 # names that say what the geometry may not: roughing, holes, 2D, pencil/trace (a word
 # of the name, digits around it allowed: POCKET4, 2D CONTOUR1; not SURFACE for FACE)
@@ -209,31 +211,44 @@ class _Samples:
 
 
 def _samples(tp: Toolpath, points: np.ndarray, spacing_mm: float) -> _Samples:
-    """Samples of the moves ending at ``points`` (indices into the toolpath).
+    """Samples ``spacing_mm`` apart along the moves ending at ``points`` (indices into the
+    toolpath), taken one after the other; at most ``MAX_SAMPLES`` (the spacing grows for
+    long operations), so a million blocks cost no more than a few thousand.
 
     5 axes: with one tilted tool axis over them (3+2) the moves are seen in a frame whose
     Z is that axis (levels and slopes along the tool); where the axis turns (simultaneous
     5-axis) a move with the tool tilted follows the surface, whatever its tip's Z."""
     a, b = tp.xyz_mm[points - 1], tp.xyz_mm[points]
     turning = np.zeros(points.shape, dtype=bool)
-    if tp.tool_axis is not None and points.size:
-        e = tp.tool_axis[points]
-        if np.allclose(e, e[0], atol=1e-9):
-            a, b = a @ _to_axis(e[0]).T, b @ _to_axis(e[0]).T
-        else:
-            turning = np.any(np.abs(e[:, :2]) > 1e-9, axis=1)
+    frame = _tool_frame(tp, points)
+    if frame is not None:
+        a, b = a @ frame.T, b @ frame.T
+    elif tp.tool_axis is not None and points.size:
+        turning = np.any(np.abs(tp.tool_axis[points][:, :2]) > 1e-9, axis=1)
     d = b - a
     length = np.linalg.norm(d, axis=1)
-    total = float(length.sum())
+    cum = np.concatenate(([0.0], np.cumsum(length)))
+    total = float(cum[-1])
     spacing = max(spacing_mm, total / MAX_SAMPLES, 1e-3)
-    n = np.maximum(np.ceil(length / spacing).astype(np.int64), 1)
-    seg = np.repeat(np.arange(points.size), n)
-    first = np.concatenate(([0], np.cumsum(n)[:-1]))
-    frac = (np.arange(seg.size) - first[seg] + 1) / n[seg]
+    s = (np.arange(max(int(total / spacing), 1)) + 0.5) * spacing
+    s = s[s < total] if total > 0 else np.zeros(0)
+    seg = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, max(points.size - 1, 0))
+    frac = (s - cum[seg]) / np.maximum(length[seg], 1e-12)
     xyz = a[seg] + d[seg] * frac[:, None]
-    s = np.concatenate(([0.0], np.cumsum(length)[:-1]))[seg] + length[seg] * frac
     sloped = (np.abs(d[:, 2]) > SLOPE * np.maximum(length, 1e-12)) | turning
-    return _Samples(xyz, s, (length / n)[seg], sloped[seg], points[seg])
+    weight = np.full(s.shape, spacing)
+    return _Samples(xyz, s, weight, sloped[seg], points[seg])
+
+
+def _tool_frame(tp: Toolpath, points: np.ndarray) -> np.ndarray | None:
+    """The rotation into the frame whose Z is the one tool axis of the moves ending at
+    ``points`` (3+2), None for +Z or a turning axis."""
+    if tp.tool_axis is None or not points.size:
+        return None
+    e = tp.tool_axis[points]
+    if not np.allclose(e, e[0], atol=1e-9) or np.allclose(e[0], (0.0, 0.0, 1.0), atol=1e-9):
+        return None
+    return _to_axis(e[0])
 
 
 def _to_axis(e: np.ndarray) -> np.ndarray:
@@ -246,24 +261,64 @@ def _to_axis(e: np.ndarray) -> np.ndarray:
     return np.eye(3) + k + k @ k / (1.0 + c)
 
 
-def _neighbour_pass(sm: _Samples, radius_mm: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per sample: another pass runs within ``radius_mm`` of it; and the nearest point of
-    another pass lies straight above or below it (the same contour retraced at another
-    depth: a vertical wall)."""
+def _neighbour_pass(sm: _Samples, radius_mm: float) -> np.ndarray:
+    """(m,) bool: another pass runs within ``radius_mm`` of the sample."""
     m = sm.xyz.shape[0]
     if m < 2:
-        return np.zeros(m, dtype=bool), np.zeros(m, dtype=bool)
+        return np.zeros(m, dtype=bool)
     k = min(12, m)
     dist, j = cKDTree(sm.xyz).query(sm.xyz, k=k, distance_upper_bound=radius_mm, workers=-1)
     ok = np.isfinite(dist)
     j = np.where(ok, j, 0)
     other = ok & (np.abs(sm.s_mm[j] - sm.s_mm[:, None]) > OTHER_PASS_RATIO * np.maximum(dist, 1e-9))
-    has = other.any(axis=1)
-    first = np.argmax(other, axis=1)
-    nearest = j[np.arange(m), first]
-    d = sm.xyz[nearest] - sm.xyz
-    vertical = has & (np.abs(d[:, 2]) > VERTICAL * np.maximum(np.linalg.norm(d, axis=1), 1e-12))
-    return has, vertical
+    return other.any(axis=1)
+
+
+def _retraced(tp: Toolpath, geo: np.ndarray, sm: _Samples, radius_mm: float) -> np.ndarray:
+    """(m,) bool, for the constant-Z samples: the nearest point of another pass lies
+    straight above or below them (the same contour retraced at another depth: a vertical
+    wall).  The nearest point on the other pass's moves, not its nearest sample: a CAM
+    writes each level with its own points."""
+    out = np.zeros(sm.xyz.shape[0], dtype=bool)
+    flat = np.flatnonzero(~sm.sloped)
+    if flat.size == 0 or geo.size < 2:
+        return out
+    a, b = tp.xyz_mm[geo - 1], tp.xyz_mm[geo]
+    frame = _tool_frame(tp, geo)  # 3+2: the samples are in the tool's frame, so the moves too
+    if frame is not None:
+        a, b = a @ frame.T, b @ frame.T
+    length = np.linalg.norm(b - a, axis=1)
+    s_end = np.cumsum(length)
+    stride = max(1, -(-flat.size // RETRACE_SAMPLES))  # every stride-th sample judged
+    idx = flat[::stride]
+    _, vertical = _other_pass(cKDTree(b), a, b, length, s_end, sm, idx,
+                              min(24, geo.size), radius_mm)  # a dense contour: own points first
+    out[flat] = vertical[np.arange(flat.size) // stride]  # its neighbours along the path alike
+    return out
+
+
+def _other_pass(tree, a, b, length, s_end, sm: _Samples, idx: np.ndarray, k: int,
+                radius_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """For the samples ``idx``: is another pass within ``radius_mm`` among the moves at
+    the ``k`` nearest points, and is the nearest such one straight above or below."""
+    q = sm.xyz[idx]
+    _, j = tree.query(q, k=k, workers=-1)
+    j = j.reshape(idx.size, -1)
+    seg = np.concatenate((j, np.minimum(j + 1, b.shape[0] - 1)), axis=1)  # both moves at a point
+    sa, sb = a[seg], b[seg]
+    d = sb - sa
+    t = np.clip(np.einsum("mkc,mkc->mk", q[:, None, :] - sa, d) /
+                np.maximum(np.einsum("mkc,mkc->mk", d, d), 1e-24), 0.0, 1.0)
+    off = sa + d * t[..., None] - q[:, None, :]
+    dist = np.linalg.norm(off, axis=2)
+    s_c = s_end[seg] - length[seg] * (1.0 - t)
+    other = (dist <= radius_mm) & (np.abs(s_c - sm.s_mm[idx][:, None]) >
+                                   OTHER_PASS_RATIO * np.maximum(dist, 1e-9))
+    best = np.argmin(np.where(other, dist, np.inf), axis=1)
+    rows = np.arange(idx.size)
+    near = off[rows, best]
+    found = other[rows, best]
+    return found, found & (np.abs(near[:, 2]) > VERTICAL * np.maximum(dist[rows, best], 1e-12))
 
 
 @dataclass(frozen=True)
@@ -451,26 +506,54 @@ def _parts(tp: Toolpath, pts: np.ndarray, feed: np.ndarray, diameter_mm: float) 
         return [_Part(0, NO_CUT, np.nan, np.nan, "no cut at the cutting feed", 0.0)]
     radius = 0.5 * diameter_mm
     sm = _samples(tp, geo, 0.5 * radius)
-    nb = _neighbour_pass(sm, NEIGHBOUR_D * diameter_mm)
+    nb = (_neighbour_pass(sm, NEIGHBOUR_D * diameter_mm),
+          _retraced(tp, geo, sm, NEIGHBOUR_D * diameter_mm))
     lv = _levels(sm, max(0.5 * radius, 0.05))
     chunk_of_sample = np.searchsorted(starts, np.searchsorted(pts, sm.point), side="right")
+    groups = _groups(starts, chunk_of_sample, sm.weight_mm, MIN_PART_D * diameter_mm)
     parts: list[_Part] = []
-    for c in range(starts.size + 1):
-        sel = chunk_of_sample == c
-        first = 0 if c == 0 else int(starts[c - 1])
+    said_mm: list[float] = []  # length of the piece whose reason each part gives
+    for first_chunk, last_chunk in groups:
+        sel = (chunk_of_sample >= first_chunk) & (chunk_of_sample <= last_chunk)
+        first = 0 if first_chunk == 0 else int(starts[first_chunk - 1])
         length = float(sm.weight_mm[sel].sum())
         kind, step, stepover, why = _kind_of(sm, sel, nb, lv, diameter_mm) if sel.any() else (
             NO_CUT, np.nan, np.nan, "no feed move")
         if parts and (kind == parts[-1].kind or kind == NO_CUT):
             last = parts[-1]
-            parts[-1] = _Part(last.first_point, last.kind, last.step_mm, last.stepover_mm,
-                              last.why, last.length_mm + length)
+            said = last if said_mm[-1] >= length or kind == NO_CUT else _Part(
+                0, kind, step, stepover, why, 0.0)  # the longest piece says why
+            said_mm[-1] = max(said_mm[-1], length)
+            parts[-1] = _Part(last.first_point, last.kind, said.step_mm, said.stepover_mm,
+                              said.why, last.length_mm + length)
             continue  # the same kind goes on (a chunk without a cut joins the one before)
         if parts and parts[-1].kind == NO_CUT:
             parts[-1] = _Part(parts[-1].first_point, kind, step, stepover, why, length)
+            said_mm[-1] = length
             continue
         parts.append(_Part(first, kind, step, stepover, why, length))
+        said_mm.append(length)
     return parts
+
+
+def _groups(starts, chunk_of_sample, weight, min_mm: float) -> list[tuple[int, int]]:
+    """Consecutive chunks (between rapids) joined until each group cuts ``min_mm`` at
+    least: a few short moves between two rapids are judged with their neighbours, not
+    alone (a part of 8 lines is no operation)."""
+    n = starts.size + 1
+    length = np.bincount(chunk_of_sample, weights=weight, minlength=n)[:n]
+    groups, begin, acc = [], 0, 0.0
+    for c in range(n):
+        acc += float(length[c])
+        if acc >= min_mm:
+            groups.append((begin, c))
+            begin, acc = c + 1, 0.0
+    if begin < n:
+        if groups:
+            groups[-1] = (groups[-1][0], n - 1)
+        else:
+            groups.append((begin, n - 1))
+    return groups
 
 
 def _operations(tp, span, parts, pts, base, canned) -> list[Operation]:

@@ -29,6 +29,7 @@ from lark.exceptions import UnexpectedInput
 
 from .dialect import DIALECTS, FANUC, GENERIC, GRBL
 from .errors import NcParseError, UsageError
+from .memory import release_freed_memory
 from .model import VECTOR_WORD_CODES, LineKind, Program
 from .refuse import caret_context, check_text, klartext_what, looks_like_klartext
 from .threads import available_cpus, map_in_threads
@@ -197,7 +198,9 @@ def parse_text(text: str, path: str = "<input>", *, dialect: str | None = None,
             has_expr[i] = True
         if progress is not None:
             progress(i)
-    return _assemble(path, text, line_start, kind, has_expr, words, slow_words, opaque, exprs)
+    prog = _assemble(path, text, line_start, kind, has_expr, words, slow_words, opaque, exprs)
+    release_freed_memory()  # the byte-level temporaries of 1M lines: hundreds of MB
+    return prog
 
 
 @lru_cache(maxsize=None)

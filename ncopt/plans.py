@@ -149,9 +149,12 @@ def check_fit(fit: MeshFit | None, tool: int, tol_mm: float, path: str) -> None:
 
 def tool_view(tp: Toolpath, idx: planner.BlockIndex, tool: int, cutter: Cutter,
               selected: np.ndarray, mesh_index, opts: PlanOptions, tol_mm: float,
-              method: Method, rapid_mm_min: float, stock_mm: float = 0.0) -> ToolView:
+              method: Method, rapid_mm_min: float, stock_mm: float = 0.0,
+              r_floor_mm: float = 0.0) -> ToolView:
+    """``r_floor_mm``: R_eff below which every operation of the tool runs at S_max
+    (the mesh is sampled no finer where R_eff only changes below it)."""
     sampled = contacts_for(tp, cutter, selected, mesh_index, opts.sample_mm, tol_mm, method,
-                           stock_mm)
+                           stock_mm, r_floor_mm=r_floor_mm)
     c = sampled.contacts
     base = planner.blocks_from_contacts(
         idx, tp.seg_len_mm, tp.motion, tp.feed_mm_min, tp.known, tp.spindle_on,
@@ -559,7 +562,8 @@ def plan_program(prog: Program, tp: Toolpath, idx: planner.BlockIndex, job,
             sel = (point_op >= 0) & (op_tool[np.maximum(point_op, 0)] == op.tool)
             views[key] = tool_view(tp, idx, op.tool, choices[op.tool].cutter, sel, mesh_index,
                                    job.options, job.contact_tol_mm, method,
-                                   job.machine.rapid_mm_min, job.stock_mm)
+                                   job.machine.rapid_mm_min, job.stock_mm,
+                                   _r_floor_mm(job, ops, cuts, op.tool, choices[op.tool].cutter))
             fits[op.tool] = mesh_fit(views[key], tp, sel, job.contact_tol_mm)
             check_fit(fits[op.tool], op.tool, job.contact_tol_mm, prog.path)
         cut, source = cuts[k]
@@ -574,6 +578,14 @@ def plan_program(prog: Program, tp: Toolpath, idx: planner.BlockIndex, job,
         exc.operations = tuple(ops)  # for reports: every operation and why it is left
         raise exc
     return Work(tuple(ops), scope, plans, choices, views, point_op, fits)
+
+
+def _r_floor_mm(job, ops, cuts, tool: int, cutter: Cutter) -> float:
+    """The smallest R_eff at which an operation of ``tool`` asks for less than S_max."""
+    floors = [1000.0 * cut.vc_m_min
+              / (2.0 * np.pi * planner.speed_limits(job.machine, cut, cutter.teeth)[1])
+              for k, (cut, _) in cuts.items() if ops[k].tool == tool]
+    return min(floors, default=0.0)
 
 
 def _choices(prog, tp, job, plannable, stamps) -> dict:

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import VerificationError
+from .memory import release_freed_memory
 from .model import Edits, LineKind, Program
 
 S_CODE, F_CODE = ord("S"), ord("F")
@@ -285,7 +286,10 @@ def apply_edits(text: str, edits) -> str:
     for i, k in enumerate(order.tolist()):
         parts.append(new[k])
         parts.append(text[keep_from[i + 1]:keep_to[i + 1]])
-    return "".join(parts)
+    out = "".join(parts)
+    del parts, keep_from, keep_to
+    release_freed_memory()  # the planning's and the edits' leftovers, before verification
+    return out
 
 
 def masked(prog: Program) -> str:

@@ -27,7 +27,9 @@ Machine model
 
 Samples
 -------
-Every move is sampled at most ``sample_mm`` apart, both ends included: the
+Every move is sampled at most ``sample_mm`` apart (a move longer than
+``ncopt.contacts.MAX_SAMPLES_PER_MOVE`` times that, every length / that many, with
+a warning: memory stays bounded by the program), both ends included: the
 start of block ``b`` is sampled with block ``b``'s F (and again, at the same
 place, as the end of block ``b-1``), so the jump of fz where F changes is
 seen exactly.  Within a block F is constant and S monotone, so fz takes its
@@ -51,7 +53,8 @@ import numpy as np
 
 from .api import Job, nominal_cutting_data, read_text
 from .stamp import read_stamps
-from .contacts import centre_offsets, path_contacts_at_samples, sample_axes, sample_points
+from .contacts import (MAX_SAMPLES_PER_MOVE, centre_offsets, path_contacts_at_samples,
+                       sample_axes, sample_points)
 from .errors import UsageError
 from .geometry import MeshIndex, contacts_from_mesh, load_stl
 from .interp import MM_PER_INCH, ffill, interpret
@@ -247,7 +250,7 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
     contacts : Contacts or None
         Precomputed contacts, one row per point of
         ``ncopt.contacts.sample_points(toolpath, sample_mm)``, e.g.
-        ``ncopt.contacts.contacts_for(...).contacts``: an original and its
+        ``ncopt.contacts.mesh_contacts_at_samples(...)``: an original and its
         rewrite have the same toolpath and can share them.
     band : float or None
         Relative fz band for ``fz_in_band_pct`` and the lag check (None: the band an
@@ -284,7 +287,8 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
     if band is None:  # the band the rewrite held, as its stamp says; else 2 %
         band = stamp.band_pct / 100.0 if stamp is not None and stamp.band_pct else 0.02
     report = _report(path, moves, series, weight, mv, cut, band, sample_mm, s_words,
-                     _warnings(path, tp, moves, job.machine, series))
+                     _warnings(path, tp, moves, job.machine, series)
+                     + _coarse_moves(path, tp, moves, sample_mm))
     return report, series
 
 
@@ -595,6 +599,20 @@ def _lag_stretches(series: SimSeries, weight: np.ndarray, cut: CuttingData,
     return tuple(LagStretch(int(series.line[a]), int(series.line[b]), float(n),
                             float(100 * dev[w]), float(series.s_cmd_rpm[w]), float(series.s_rpm[w]))
                  for a, b, n, w in zip(first, last, length, worst))
+
+
+def _coarse_moves(path: str, tp: Toolpath, moves: _Moves, sample_mm: float) -> tuple:
+    """Moves too long to sample every ``sample_mm``: where, and how coarsely."""
+    chord = np.linalg.norm(np.diff(tp.xyz_mm, axis=0), axis=1)
+    long = np.flatnonzero(chord > MAX_SAMPLES_PER_MOVE * sample_mm)
+    if long.size == 0:
+        return ()
+    i = long[np.argmax(chord[long])]
+    return (f"{path}:{moves.line[i]}: a move of {chord[i]:.6g} mm is sampled every "
+            f"{chord[i] / MAX_SAMPLES_PER_MOVE:.6g} mm, not {sample_mm:g} "
+            f"({long.size} move{'s' if long.size > 1 else ''} longer than "
+            f"{MAX_SAMPLES_PER_MOVE * sample_mm:g} mm; at most {MAX_SAMPLES_PER_MOVE} samples "
+            "a move)",)
 
 
 def _warnings(path: str, tp: Toolpath, moves: _Moves, machine: Machine,

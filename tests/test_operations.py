@@ -433,3 +433,29 @@ def test_simulate_judges_a_rewrite_with_the_teeth_and_band_of_its_stamp():
     report, _ = simulate_program(out, Job(machine=MACHINE), path="out.nc")
     assert report.band_pct == 1.0
     assert report.fz_in_band_pct > 95.0 and report.fz_max_over_pct < 1.0
+
+
+def test_json_summary_and_batch_report_list_every_operation(tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from ncopt.cli import app
+    text = program(finish("PARALLEL1", 1), drill(2), tools=[BALL1, DRILL2])
+    src = tmp_path / "in" / "p.nc"
+    src.parent.mkdir()
+    src.write_text(text)
+    spindle = ["--accel", "227", "--max-rpm", "15000"]
+    run = CliRunner().invoke(app, ["rewrite", str(src), "-o", str(tmp_path / "o.nc"), "--json",
+                                   *spindle])
+    assert run.exit_code == 0, run.output
+    data = json.loads(run.stderr)
+    assert [(o["name"], o["planned"]) for o in data["operations"]] == [
+        ("PARALLEL1", True), ("DRILL1", False)]
+    assert data["cut_time_before_min"] > data["cut_time_after_min"] > 0
+    report = tmp_path / "r.json"
+    CliRunner().invoke(app, ["batch", str(src.parent), "-o", str(tmp_path / "out"), *spindle,
+                             "--report", str(report)])
+    (entry,) = json.loads(report.read_text())
+    assert [tuple(o[:2]) for o in entry["operations"]] == [("PARALLEL1", True), ("DRILL1", False)]
+    assert entry["summary"]["cut_time_before_min"] == pytest.approx(data["cut_time_before_min"])

@@ -18,11 +18,11 @@ import pytest
 from stl import mesh as stl_mesh
 
 from ncopt.api import Job, rewrite_file, rewrite_text
-from ncopt.contacts import contacts_for
+from ncopt.contacts import mesh_contacts_at_samples
 from ncopt.errors import UsageError
 from ncopt.geometry import MeshIndex, load_stl
 from ncopt.interp import interpret
-from ncopt.model import Cutter, CuttingData, Machine, Motion, PlanOptions
+from ncopt.model import Cutter, CuttingData, Machine, PlanOptions
 from ncopt.parse import parse_text
 from ncopt.simulate import simulate_file, simulate_program
 
@@ -219,8 +219,7 @@ def test_without_a_mesh_the_toolpath_gives_the_contacts(bowl):
 def test_bad_contacts_and_spacing(flat):
     text = program("S1000 M3", "G0 X0 Y0 Z0", "G1 X5 F100")
     tp = interpret(parse_text(text))
-    sel = np.isin(tp.motion, [Motion.LINEAR]) & tp.known
-    good = contacts_for(tp, BALL16, sel, flat, 0.1, 0.05).contacts
+    good = mesh_contacts_at_samples(tp, BALL16, flat, 0.1, 0.05)
     rep_c, _ = simulate_program(text, JOB, contacts=good)
     rep_m, _ = simulate_program(text, JOB, flat)
     assert rep_c.to_dict() == rep_m.to_dict()
@@ -267,7 +266,7 @@ def bowl():
     target = CuttingData(rep0.vc_target_m_min, rep0.fz_target_mm)
     tp = interpret(parse_text(original))
     index = MeshIndex(load_stl(stl))
-    contacts = contacts_for(tp, BALL16, tp.known, index, 0.1, job.contact_tol_mm).contacts
+    contacts = mesh_contacts_at_samples(tp, BALL16, index, 0.1, job.contact_tol_mm)
     rep1, ser1 = simulate_program(rewritten, replace(job, cutting=target), contacts=contacts)
     below = replace(job, options=PlanOptions(fz_policy="below"))
     rewritten_below = rewrite_file(mpf, below, mesh_path=stl).text
