@@ -21,6 +21,7 @@ from .contacts import Method
 from .controls import ANYWHERE, control_note, default_s_changes
 from .dialect import detect, resolve_decimal_point
 from .errors import VerificationError
+from .feedmode import inverse_time_words
 from .geometry import MeshIndex, load_stl
 from .interp import ffill, interpret
 from .model import Cutter, CuttingData, Machine, Motion, PlanOptions, Program, Toolpath
@@ -63,6 +64,7 @@ class Job:
     stock_mm: float = 0.0  # --stock: allowance the program leaves on the mesh, mm
     diameter_bare: bool = False  # --diameter was a bare number (read as mm)
     shape_named: bool = False  # the user named the cutter's shape (not --diameter alone)
+    kinematics: str | None = None  # 5-axis: how rotary angles tilt the tool (ncopt.kinematics)
 
 
 ToolPlan = OpPlan  # the plan of one operation (one tool in ncopt 0.1)
@@ -218,7 +220,7 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     """
     found = detect(text)
     prog = read_text(text, path, job, found.name)
-    tp = interpret(prog)
+    tp = interpret(prog, kinematics=job.kinematics)
     mesh_index = _loaded(mesh_index)
     idx = planner.block_index(tp.line)
     s_style = detect_style(prog, S_CODE)
@@ -227,6 +229,7 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     if inch and f_style.decimals < 2:
         f_style = replace(f_style, decimals=2, trailing_point=False)  # inch/min needs them
     quantum = 10.0 ** -f_style.decimals * (MM_PER_INCH if inch else 1.0)
+    quantum = max(quantum, _inverse_time_quantum(tp, idx, f_style))
     mode_given = job.options.s_changes is not None
     control = job.control or found.name
     mode = job.options.s_changes or default_s_changes(control)
@@ -261,7 +264,10 @@ def _targets(prog: Program, tp: Toolpath, idx: planner.BlockIndex, work: "Work",
              f_style) -> Targets:
     """S and F to be in force per block: planned where an operation's plan owns the
     block, else the program's own; and the program's own at every fixed line that does
-    not move (a canned cycle, a call), so that it is in force there too."""
+    not move (a canned cycle, a call), so that it is in force there too.
+
+    A G93 block's F is 1 / minutes: the planned tip feed over its length
+    (``ncopt.feedmode``).  A rotary-only block (no length) keeps its F."""
     fp = idx.first_point
     ls = tp.lines
     inch = tp.line_inch[idx.line] if tp.line_inch is not None else np.zeros(fp.shape, bool)
@@ -272,15 +278,40 @@ def _targets(prog: Program, tp: Toolpath, idx: planner.BlockIndex, work: "Work",
     s_value[~(s_value > 0) | ~ls.s_known[idx.line]] = np.nan  # never write S0
     f_value[~ls.f_known[idx.line]] = np.nan
     scale = 10.0 ** f_style.decimals
+    g93, length = _inverse_time_blocks(tp, idx)
+    if g93 is not None:
+        f_value = np.where(g93 & ls.f_known[idx.line],
+                           inverse_time_words(tp.feed_mm_min[fp], length), f_value)
     for p in work.plans:
         lo, hi = p.window
         planned = p.blocks.planned
         s_value[lo:hi] = np.where(planned, p.s_cmd_rpm, s_value[lo:hi])
+        word = p.f_mm_min / unit[lo:hi]
+        if g93 is not None:
+            word = np.where(g93[lo:hi], inverse_time_words(p.f_mm_min, length[lo:hi]), word)
         # never above fz; a value a rounding error short of a written one is that one
-        planned_f = np.floor(p.f_mm_min / unit[lo:hi] * scale + 1e-6) / scale
-        f_value[lo:hi] = np.where(np.isfinite(p.f_mm_min), planned_f, f_value[lo:hi])
+        planned_f = np.floor(word * scale + 1e-6) / scale
+        moves = p.blocks.length_mm > 0  # a rotary-only block keeps its F
+        f_value[lo:hi] = np.where(np.isfinite(p.f_mm_min) & moves, planned_f, f_value[lo:hi])
     f_value[~(f_value > 0)] = np.nan  # never F0 or below (controls reject it)
     return Targets(line=idx.line, s_value=s_value, f_value=f_value)
+
+
+def _inverse_time_blocks(tp, idx):
+    """(nb,) bool: the block is in G93, and (nb,) its length in mm; (None, None) if none is."""
+    if tp.inverse_time is None:
+        return None, None
+    fp = idx.first_point
+    return tp.inverse_time[fp], np.add.reduceat(tp.seg_len_mm[1:], fp - 1)
+
+
+def _inverse_time_quantum(tp, idx, f_style) -> float:
+    """The feed resolution (mm/min) of the G93 words: the word's own resolution times the
+    longest G93 feed block (0 when there is none)."""
+    g93, length = _inverse_time_blocks(tp, idx)
+    if g93 is None or not np.any(g93 & tp.known[idx.first_point]):
+        return 0.0
+    return 10.0 ** -f_style.decimals * float(np.max(length[g93 & tp.known[idx.first_point]]))
 
 
 def _with_fixed_lines(tp: Toolpath, idx: planner.BlockIndex, scope: Scope,
@@ -481,6 +512,9 @@ def _feed_after(tp: Toolpath, idx: planner.BlockIndex, targets: Targets) -> np.n
     on_block = np.isin(targets.line, idx.line)
     f_block = targets.f_value[on_block]  # program units, the blocks' order
     unit = np.where(tp.line_inch[idx.line], MM_PER_INCH, 1.0) if tp.line_inch is not None else 1.0
+    g93, length = _inverse_time_blocks(tp, idx)
+    if g93 is not None:  # a G93 word is 1 / minutes: the tip feed is the word x the length
+        unit = np.where(g93, length, unit)
     f_block = f_block * unit
     out = tp.feed_mm_min.copy()
     counts = np.diff(np.concatenate((idx.first_point, [tp.n])))

@@ -142,6 +142,11 @@ SChanges = Annotated[Optional[str], typer.Option(
     "word). Default: between-passes for grbl, else anywhere.")]
 Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="No summary on stderr (errors "
                                      "still are).")]
+KinematicsName = Annotated[Optional[str], typer.Option(
+    "--kinematics", help="The machine's 5-axis kinematics, for programs that tilt the tool "
+    "with rotary axes A/B/C: xyzac-trt, xyzac-head-table, xyzac-trt-linuxcnc, xyzbc-trt, "
+    "xyzbc-head-table, xyzbc-head-head, xyzbc-trt-linuxcnc, xyzbc-5axis-linuxcnc, or vector "
+    "(tool vectors in the program, also detected). Default: from --machine.")]
 
 
 def _exit_code(exc: NcoptError) -> Exit:
@@ -208,7 +213,8 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
              fz_policy="centred", fz_band=2.0, control=None, min_s_interval_ms=None,
              machine=None, tools_file=None, cutter=None, material=None,
              method="contact", ap=0.2, allowance_along="normal", decimal_point=None,
-             operations=None, shape=None, stock=0.0, s_changes=None) -> "Job":
+             operations=None, shape=None, stock=0.0, s_changes=None,
+             kinematics=None) -> "Job":
     """A Job from command-line values and the profiles, checked; raises UsageError.
 
     Command-line values win; then the machine profile (--machine, else the
@@ -238,6 +244,9 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
     min_s_interval_ms = pick(min_s_interval_ms, "min_s_interval_ms", 0.0)
     decimal_point = pick(decimal_point, "decimal_point", None)
     s_changes = pick(s_changes, "s_changes", None)
+    from .kinematics import check_name
+
+    kinematics = check_name(pick(kinematics, "kinematics", None))
     if cutter is not None:
         if diameter is not None:
             raise UsageError("give --cutter or --diameter, not both")
@@ -308,7 +317,7 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
                tool_library={k: c for k, (c, _) in profiles.tools.items() if isinstance(k, int)},
                operations=tuple(o.strip() for o in operations.split(",")) if operations else None,
                shape_named=shape is not None or corner_radius is not None or cutter is not None,
-               stock_mm=stock, diameter_bare=bare)
+               stock_mm=stock, diameter_bare=bare, kinematics=kinematics)
 
 
 def _job_options(values: dict) -> dict:
@@ -334,6 +343,7 @@ def rewrite(
     material: Material = None, method: MethodName = "contact", ap: Ap = "0.2",
     allowance_along: AllowanceAlong = "normal", operations: Operations = None,
     shape: Shape = None, stock: Stock = "0", report: ReportFile = None, quiet: Quiet = False,
+    kinematics: KinematicsName = None,
     as_json: Annotated[bool, typer.Option(
         "--json", help="The summary as one JSON object on stderr instead of text (stdout "
         "stays the program).")] = False,
@@ -480,6 +490,7 @@ def batch(
     material: Material = None, method: MethodName = "contact", ap: Ap = "0.2",
     allowance_along: AllowanceAlong = "normal", operations: Operations = None,
     shape: Shape = None, stock: Stock = "0", quiet: Quiet = False,
+    kinematics: KinematicsName = None,
 ) -> None:
     """Rewrite every program of a folder in parallel; one bad file never stops the others."""
     from .batch import Task, find_programs, plan_targets, prepare_output_folder, run_batch
@@ -535,7 +546,7 @@ def report(
     tool_point: ToolPoint = "tip", tool: Tool = None, rapid: Rapid = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, control: Control = None, decimal_point: DecimalPoint = None,
-    quiet: Quiet = False,
+    quiet: Quiet = False, kinematics: KinematicsName = None,
 ) -> None:
     """Write one HTML page about a program (and its original): times, curves, 3D toolpath."""
     from .report import from_programs
@@ -574,7 +585,7 @@ def simulate(
     judged_band: Annotated[Optional[float], typer.Option(
         "--fz-band", help="fz band judged, percent (default: the band an ncopt stamp "
         "records, else 2).")] = None,
-    quiet: Quiet = False,
+    quiet: Quiet = False, kinematics: KinematicsName = None,
 ) -> None:
     """Replay a program on a spindle that ramps at its real acceleration: time, fz, vc."""
     from dataclasses import replace
@@ -671,6 +682,7 @@ def inspect(
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
     control: Control = None, decimal_point: DecimalPoint = None,
     machine: MachineName = None, tools_file: ToolsFile = None, max_feed: MaxFeed = None,
+    kinematics: KinematicsName = None,
 ) -> None:
     """Show what ncopt understands of a program before it changes anything (read with the
     same machine profile, dialect and decimal point as rewrite)."""
@@ -686,11 +698,14 @@ def inspect(
         control = control if control is not None else m.control
         decimal_point = decimal_point if decimal_point is not None else m.decimal_point
         max_feed = max_feed if max_feed is not None else m.max_feed_mm_min
+        kinematics = kinematics if kinematics is not None else m.kinematics
     [data] = read_programs([program])
     if control is not None and control not in CONTROLS:
         raise UsageError(f"--dialect must be one of {', '.join(CONTROLS)}, not {control!r}")
+    from .kinematics import check_name
+
     info = inspect_text(data.decode("latin-1"), program, dialect=control,
-                        decimal_point=decimal_point,
+                        decimal_point=decimal_point, kinematics=check_name(kinematics),
                         max_feed_mm_min=max_feed if max_feed is not None else float("inf"))
     if as_json:
         import json

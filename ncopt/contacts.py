@@ -2,11 +2,17 @@
 
 With a mesh, the planner's samples are every block end and, inside a move, only
 where the geometry asks for them (:mod:`ncopt.sampling`), and the contacts come
-from closest-point queries (:mod:`ncopt.geometry`).  Without a mesh, the CL
-points themselves are the samples and the normals come from the toolpath's own
-shape (:mod:`ncopt.pathnormals`); between two points the normal is their
+from closest-point queries (:mod:`ncopt.geometry`); a 5-axis toolpath is sampled
+evenly, at most ``AXIS_SAMPLE_MM`` apart.  Without a mesh, the CL points
+themselves are the samples and the normals come from the toolpath's own shape
+(:mod:`ncopt.pathnormals`); between two points the normal is their
 interpolation, so no interior samples are needed.  ``sample_points`` spaces
 samples evenly (the simulator's), at most ``MAX_SAMPLES_PER_MOVE`` per move.
+
+The cutter centre is the programmed point moved ``tools.center_offset_mm``
+along the tool axis: +Z, or in 5 axes ``Toolpath.tool_axis`` (between two
+points the blend of theirs, :func:`sample_axes`), and R_eff is measured from
+that axis.
 """
 
 from __future__ import annotations
@@ -16,12 +22,27 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .geometry import MeshIndex, mesh_contacts
+from .kinematics import KINEMATICS, blend
 from .memory import release_freed_memory
 from .model import Contacts, Cutter, Toolpath
-from .pathnormals import PathNormals, contacts_from_path
+from .pathnormals import (ONE_SIDED, ONE_SIDED_TILT_DEG, PathNormals, contacts_from_path,
+                          path_normals, tilt_from_axis)
 from .remaining import r_eff_material_mm
 from .sampling import Probe, Refinement, adaptive_samples
-from .tools import center_offset_mm
+from .tools import center_offset_mm, r_eff_mm
+
+
+# With a tilted tool the contact moves along the ball within a block as the axis turns,
+# and a ramp onto or off the surface touches along a few tenths of a mm only: 5-axis
+# toolpaths are sampled at least this finely with a mesh (the D10 dome of
+# bench/make_5axis.py: 1 mm left vc +1.1 % and a lead-out at fz -57 %; 0.25 mm: +0.4 %).
+AXIS_SAMPLE_MM = 0.25
+# Without a mesh, where a run of 5-axis cuts begins or ends the tool enters or leaves
+# the part along a ramp; within the contact tolerance up the ramp the contact has
+# turned (2 mm ramps rising 0.3 mm on the dome and bowl of bench/make_5axis.py: ~0.35
+# deg, vc +1.8 %), which the path alone cannot show: those points are planned this
+# much steeper (0.5: vc +0.4/+0.6 %, 1.9/1.8 % above the optimum; 1.0: +0.2 %, 2.3/2.6 %).
+RUN_END_TILT_DEG = 0.5
 
 # Evenly spaced samples stop at this many per move: a longer move is sampled every
 # length / MAX_SAMPLES_PER_MOVE (10 m at 0.1 mm; memory stays bounded by the moves).
@@ -36,6 +57,7 @@ class Sampled:
     point: np.ndarray  # (m,) int
     estimate: PathNormals | None = None  # mesh-free only
     gap_mm: np.ndarray | None = None  # (m,) with a mesh: clearance of the cutter, mm (< 0 inside)
+    axis: np.ndarray | None = None  # (m, 3) unit tool axis per sample; None: +Z
 
 
 def samples_per_move(tp: Toolpath, sample_mm: float) -> np.ndarray:
@@ -73,6 +95,35 @@ def sample_points(tp: Toolpath, sample_mm: float) -> tuple[np.ndarray, np.ndarra
     return a + (b - a) * frac[:, None], point
 
 
+def sample_axes(tp: Toolpath, sample_mm: float) -> np.ndarray | None:
+    """Unit tool axis at each sample of :func:`sample_points` (m, 3), blended between
+    the points' axes as a TCP control moves it; None for a 3-axis toolpath."""
+    if tp.tool_axis is None:
+        return None
+    point, frac = sample_fractions(tp, sample_mm)
+    return axes_between(tp, np.maximum(point - 1, 0), point, frac)
+
+
+def axes_between(tp: Toolpath, a: np.ndarray, b: np.ndarray, frac: np.ndarray) -> np.ndarray:
+    """(m,) unit tool axes ``frac`` of the way from point ``a`` to point ``b``: rotary angles
+    turned linearly where the kinematics gave both ends (as the control turns them),
+    else the normalised blend of the end vectors (a vector along its great circle)."""
+    e = blend(tp.tool_axis[a], tp.tool_axis[b], frac)
+    if tp.tool_angles_deg is not None:
+        a0, a1 = tp.tool_angles_deg[a], tp.tool_angles_deg[b]
+        turn = np.isfinite(a0).all(axis=1) & np.isfinite(a1).all(axis=1) & (a0 != a1).any(axis=1)
+        if turn.any():
+            ang = a0[turn] + (a1[turn] - a0[turn]) * np.asarray(frac)[turn, None]
+            e[turn] = KINEMATICS[tp.kinematics].tool_axis(ang)
+    return e
+
+
+def centre_offsets(tp: Toolpath, cutter: Cutter, axis: np.ndarray | None) -> np.ndarray:
+    """(3,) or (m, 3): from the programmed point to the cutter centre, mm."""
+    off = center_offset_mm(cutter)
+    return np.array([0.0, 0.0, off]) if axis is None else off * axis
+
+
 def path_contacts_at_samples(tp: Toolpath, cutter: Cutter, selected: np.ndarray,
                              sample_mm: float) -> Contacts:
     """Mesh-free contacts on the samples of :func:`sample_points`: the per-point
@@ -84,7 +135,8 @@ def path_contacts_at_samples(tp: Toolpath, cutter: Cutter, selected: np.ndarray,
     normal = at_points.normal[prev] * (1.0 - frac)[:, None] + at_points.normal[point] * frac[:, None]
     normal /= np.maximum(np.linalg.norm(normal, axis=1), 1e-12)[:, None]
     xyz, _ = sample_points(tp, sample_mm)
-    cc = xyz + np.array([0.0, 0.0, center_offset_mm(cutter)]) - cutter.corner_radius_mm * normal
+    cc = xyz + centre_offsets(tp, cutter, sample_axes(tp, sample_mm)) \
+        - cutter.corner_radius_mm * normal
     return Contacts(cc_mm=cc, normal=normal, r_eff_mm=r, cutting=at_points.cutting[point])
 
 
@@ -93,20 +145,24 @@ def mesh_contacts_at_samples(tp: Toolpath, cutter: Cutter, mesh_index: MeshIndex
     """Contacts from the mesh on every sample of :func:`sample_points` (the simulator's
     evenly spaced samples: an original and its rewrite can share them)."""
     xyz, _ = sample_points(tp, sample_mm)
-    offset = np.array([0.0, 0.0, center_offset_mm(cutter)])
-    return mesh_contacts(xyz + offset, mesh_index, cutter, tol_mm).contacts
+    axis = sample_axes(tp, sample_mm)
+    return mesh_contacts(xyz + centre_offsets(tp, cutter, axis), mesh_index, cutter, tol_mm,
+                         axis=axis).contacts
 
 
 def air_moves(tp: Toolpath) -> np.ndarray:
     """(n,) bool: feed moves that cannot be cutting when no mesh says otherwise:
-    plunges and retracts (within 11 deg of vertical).
+    plunges and retracts (within 11 deg of vertical, or of the tool axis at their end).
 
     Other air moves are planned like cuts: with no neighbouring pass their
     normal is that of the move itself, which can only make them run faster.
     """
     d = np.diff(tp.xyz_mm, axis=0)
-    length = np.linalg.norm(d, axis=1)
-    return np.concatenate(([False], np.abs(d[:, 2]) > 0.98 * np.maximum(length, 1e-12)))
+    length = np.maximum(np.linalg.norm(d, axis=1), 1e-12)
+    air = np.abs(d[:, 2]) > 0.98 * length
+    if tp.tool_axis is not None:  # 5 axes: also along the tilted tool (retract along the axis)
+        air |= np.abs(np.einsum("ij,ij->i", d, tp.tool_axis[1:])) > 0.98 * length
+    return np.concatenate(([False], air))
 
 
 @dataclass(frozen=True)
@@ -130,10 +186,20 @@ def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index:
     where the geometry asks for them (:mod:`ncopt.sampling`; ``sample_mm`` is the
     longest interval between samples where the tool cuts; below ``r_floor_mm`` the
     requirement is capped at S_max, so R_eff differences there need no samples).
+    A 5-axis toolpath is sampled evenly, at most ``AXIS_SAMPLE_MM`` apart: the
+    contact moves along the ball as the axis turns, which the adaptive refinement
+    (built on a fixed axis) does not look for.
     """
     release_freed_memory()  # the interpreter's and the mesh loading's leftovers
-    offset = np.array([0.0, 0.0, center_offset_mm(cutter)])
-    if mesh_index is not None:
+    if mesh_index is not None and tp.tool_axis is not None:
+        sample_mm = min(sample_mm, AXIS_SAMPLE_MM)
+        xyz, point = sample_points(tp, sample_mm)
+        axis = sample_axes(tp, sample_mm)
+        found = mesh_contacts(xyz + centre_offsets(tp, cutter, axis), mesh_index, cutter, tol_mm,
+                              stock_mm=stock_mm, axis=axis)
+        sampled = Sampled(found.contacts, point, gap_mm=found.gap_mm, axis=axis)
+    elif mesh_index is not None:
+        offset = centre_offsets(tp, cutter, None)
         ref = Refinement(coarse_mm=sample_mm, r_floor_mm=r_floor_mm, contact_tol_mm=tol_mm)
         got = adaptive_samples(tp.xyz_mm + offset, selected,
                                _mesh_probe(mesh_index, cutter, tol_mm, stock_mm), ref)
@@ -141,14 +207,52 @@ def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index:
         sampled = Sampled(Contacts(cc_mm=p.cc_mm, normal=p.normal, r_eff_mm=p.r_eff_mm,
                                    cutting=p.cutting), got.point, gap_mm=p.gap_mm)
     else:
-        path = np.cumsum(tp.seg_len_mm)
         cutting = selected & ~air_moves(tp)
-        contacts, estimate = contacts_from_path(tp.xyz_mm + offset, path, cutting, cutter)
-        sampled = Sampled(contacts, np.arange(tp.n), estimate)
+        if tp.tool_axis is None:
+            centres = tp.xyz_mm + centre_offsets(tp, cutter, None)
+            contacts, estimate = contacts_from_path(centres, np.cumsum(tp.seg_len_mm), cutting,
+                                                    cutter)
+        else:
+            contacts, estimate = _path_contacts_5axis(tp, cutter, cutting)
+        sampled = Sampled(contacts, np.arange(tp.n), estimate, axis=tp.tool_axis)
     if method.name == "material":
         sampled = replace(sampled, contacts=_with_material(tp, cutter, sampled, method))
     release_freed_memory()
     return sampled
+
+
+def _path_contacts_5axis(tp: Toolpath, cutter: Cutter, cutting: np.ndarray):
+    """Mesh-free contacts with a tilted axis: normals from the ball centres, along the
+    centres' own path (the tip's is longer or shorter where the axis turns)."""
+    centres = tp.xyz_mm + centre_offsets(tp, cutter, tp.tool_axis)
+    est, run_end = _end_normals(centres, cutting, tp.tool_axis)
+    return _recomputed(est, cutter, centres, tp.tool_axis, cutting, run_end), est
+
+
+def _end_normals(centres: np.ndarray, cutting: np.ndarray, axis: np.ndarray):
+    """Path normals, and (m,) bool: the first and last point of each run of cuts.  The
+    last point is where the tool leaves the part (a lead-out ends above it): no
+    neighbour of the others, it takes the normal before it."""
+    step = np.linalg.norm(np.diff(centres, axis=0), axis=1)
+    path = np.concatenate(([0.0], np.cumsum(step)))
+    before = np.concatenate(([False], cutting[:-1]))
+    last = cutting & ~np.concatenate((cutting[1:], [False]))
+    est = path_normals(centres, path, cutting & ~(last & before), axis=axis)
+    inner = np.flatnonzero(last & before)
+    est.normal[inner] = est.normal[inner - 1]
+    return est, last | (cutting & ~before)
+
+
+def _recomputed(est: PathNormals, cutter: Cutter, centres, axis, cutting,
+                run_end=None) -> Contacts:
+    """Contacts from path normals (one-sided ones planned steeper, as contacts_from_path;
+    the ends of runs of cuts by RUN_END_TILT_DEG)."""
+    tilt = np.where(est.confidence == ONE_SIDED, np.radians(ONE_SIDED_TILT_DEG), 0.0)
+    if run_end is not None:
+        tilt = np.maximum(tilt, np.where(run_end, np.radians(RUN_END_TILT_DEG), 0.0))
+    r_eff = r_eff_mm(cutter, tilt_from_axis(est.normal, tilt, axis), axis)
+    return Contacts(cc_mm=centres - cutter.corner_radius_mm * est.normal, normal=est.normal,
+                    r_eff_mm=r_eff, cutting=cutting.copy())
 
 
 def _mesh_probe(mesh_index: MeshIndex, cutter: Cutter, tol_mm: float, stock_mm: float = 0.0):
@@ -169,5 +273,6 @@ def _mesh_probe(mesh_index: MeshIndex, cutter: Cutter, tol_mm: float, stock_mm: 
 def _with_material(tp: Toolpath, cutter: Cutter, sampled: Sampled, method: Method) -> Contacts:
     """R_eff from the remaining material, with each sample's direction of motion."""
     d = tp.xyz_mm[sampled.point] - tp.xyz_mm[np.maximum(sampled.point - 1, 0)]
-    r = r_eff_material_mm(cutter, sampled.contacts.normal, d, method.ap_mm, method.along)
+    r = r_eff_material_mm(cutter, sampled.contacts.normal, d, method.ap_mm, method.along,
+                          sampled.axis)
     return replace(sampled.contacts, r_eff_mm=r)

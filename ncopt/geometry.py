@@ -1,10 +1,12 @@
 """Contact points and normals from a triangle mesh of the part.
 
-Three-axis tools (axis +Z).  Callers give cutter centres: ball centres, or the
-centres of a bull-nose's torus core circle (programmed point +
-``tools.center_offset_mm``).  The CC point is the mesh point closest to the
-centre (fcpw's BVH finds the face, float64 numpy the point on it), for a
-bull-nose to its core disc (radius R - r).
+Callers give cutter centres: ball centres, or the centres of a bull-nose's
+torus core circle (programmed point + ``tools.center_offset_mm`` along the
+tool axis), and in 5 axes the tool axis per centre.  A ball's contact does not
+depend on the axis (the closest point to its centre); its R_eff does.  The
+bull-nose search below assumes the axis +Z.  The CC point is the mesh point
+closest to the centre (fcpw's BVH finds the face, float64 numpy the point on
+it), for a bull-nose to its core disc (radius R - r).
 
 Normals (``normals=``): ``"facet"``; ``"center"`` (CC->centre: the facet
 normal too wherever the CC point is inside a facet, so both jump from facet to
@@ -390,12 +392,13 @@ def _smooth_normal(index: MeshIndex, cl: Closest, fr: _Frame, centre: np.ndarray
 
 
 def _contact_normal(index: MeshIndex, cl: Closest, centre: np.ndarray,
-                    method: str) -> np.ndarray:
+                    method: str, axis: np.ndarray | None = None) -> np.ndarray:
     """Unit normal at each CC point, oriented toward the tool."""
     n_center = _unit(centre - cl.point_mm)
     facet = index.face_normal[cl.face]
-    lost = ~np.any(n_center, axis=1)  # centre on the mesh: take the facet's, upward
-    n_center[lost] = _orient(facet[lost], np.array([[0.0, 0.0, 1.0]]))
+    lost = ~np.any(n_center, axis=1)  # centre on the mesh: take the facet's, toward the tool
+    up = np.array([[0.0, 0.0, 1.0]]) if axis is None else axis[lost]
+    n_center[lost] = _orient(facet[lost], up)
     if method == "center":
         return n_center
     if method == "facet":
@@ -542,13 +545,14 @@ def _torus_chunk(centers: np.ndarray, index: MeshIndex, cutter: Cutter, band_mm:
     return (core, *cl)
 
 
-def _normal_chunk(core, dist, face, point, index: MeshIndex, method: str) -> tuple:
-    return (_contact_normal(index, Closest(dist, face, point), core, method),)
+def _normal_chunk(core, dist, face, point, *axis, index: MeshIndex, method: str) -> tuple:
+    return (_contact_normal(index, Closest(dist, face, point), core, method,
+                            axis[0] if axis else None),)
 
 
 def mesh_contacts(centers_mm: np.ndarray, mesh_index: MeshIndex, cutter: Cutter,
                   tol_mm: float = 0.05, *, stock_mm: float = 0.0,
-                  normals: str = "smooth") -> MeshContacts:
+                  normals: str = "smooth", axis: np.ndarray | None = None) -> MeshContacts:
     """Contacts of a ball or bull-nose cutter with a mesh, with clearances.
 
     Parameters
@@ -565,6 +569,9 @@ def mesh_contacts(centers_mm: np.ndarray, mesh_index: MeshIndex, cutter: Cutter,
         Allowance the program leaves on the part, mm.
     normals : {"smooth", "phong", "center", "facet"}
         Contact normal estimate (module docstring).
+    axis : (m, 3) float64 or None
+        Unit tool axis at each centre (5 axes); None: +Z.  A bull-nose takes
+        +Z only.
 
     Returns
     -------
@@ -579,6 +586,8 @@ def mesh_contacts(centers_mm: np.ndarray, mesh_index: MeshIndex, cutter: Cutter,
         raise ValueError(f"centers_mm must be (m, 3), got {c.shape}")
     if not np.all(np.isfinite(c)):
         raise ValueError("centers_mm holds non-finite coordinates")
+    if axis is not None and not cutter.is_ball and np.any(axis[:, :2]):
+        raise ValueError("the bull-nose contact search takes a +Z tool axis only")
     if cutter.is_ball:
         core, cl = c, mesh_index.closest(c)
     else:  # the disc search is mostly queries: serial chunks, the library uses the cores
@@ -587,17 +596,17 @@ def mesh_contacts(centers_mm: np.ndarray, mesh_index: MeshIndex, cutter: Cutter,
         core, *found = mesh_index.map_chunks(work, c, pool=False)
         cl = Closest(*found)
     normal_work = functools.partial(_normal_chunk, index=mesh_index, method=normals)
-    (normal,) = mesh_index.map_chunks(normal_work, core, *cl)
+    (normal,) = mesh_index.map_chunks(normal_work, core, *cl, *(() if axis is None else (axis,)))
     cc, dist, face = cl.point_mm, cl.dist_mm, cl.face
     gap = dist - cutter.corner_radius_mm - stock_mm
-    contacts = Contacts(cc_mm=cc, normal=normal, r_eff_mm=tools.r_eff_mm(cutter, normal),
+    contacts = Contacts(cc_mm=cc, normal=normal, r_eff_mm=tools.r_eff_mm(cutter, normal, axis),
                         cutting=gap <= tol_mm)
     return MeshContacts(contacts=contacts, gap_mm=gap, gouging=gap < -tol_mm, face=face)
 
 
 def contacts_from_mesh(centers_mm: np.ndarray, mesh_index: MeshIndex, cutter: Cutter,
                        tol_mm: float = 0.05, *, stock_mm: float = 0.0,
-                       normals: str = "smooth") -> Contacts:
+                       normals: str = "smooth", axis: np.ndarray | None = None) -> Contacts:
     """:func:`mesh_contacts` without the clearances (same parameters); returns Contacts."""
     return mesh_contacts(centers_mm, mesh_index, cutter, tol_mm, stock_mm=stock_mm,
-                         normals=normals).contacts
+                         normals=normals, axis=axis).contacts

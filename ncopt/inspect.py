@@ -10,6 +10,7 @@ import numpy as np
 from .dialect import (HEIDENHAIN, SINUMERIK, apply_decimal_point,
                       check_convention_applies, decimal_point_issue, detect)
 from .interp import interpret
+from .kinematics import tilt_deg
 from .times import feed_minutes
 from .model import LineKind, Motion, Program
 from .parse import parse_text
@@ -41,6 +42,8 @@ class Inspection:
     f_range_mm_min: tuple
     cut_length_mm: float
     cut_time_min: float
+    kinematics: str | None = None  # what gave the tool axes (5-axis), None: always +Z
+    tilt_range_deg: tuple = (0.0, 0.0)  # tool axis from +Z over the readable feed moves
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -48,6 +51,7 @@ class Inspection:
 
 def inspect_text(text: str, path: str = "<input>", *, dialect: str | None = None,
                  decimal_point: str | None = None,
+                 kinematics: str | None = None,
                  max_feed_mm_min: float = float("inf")) -> Inspection:
     """Parse and interpret; raises a located NcoptError when the program is unreadable.
 
@@ -63,7 +67,7 @@ def inspect_text(text: str, path: str = "<input>", *, dialect: str | None = None
     issue = decimal_point_issue(prog, dialect or found.name, decimal_point)
     if decimal_point is not None:
         prog = apply_decimal_point(prog, decimal_point)
-    tp = interpret(prog)
+    tp = interpret(prog, kinematics=kinematics)
     motion = tp.motion[1:]
     feed = np.isin(motion, [Motion.LINEAR, Motion.ARC_CW, Motion.ARC_CCW])
     arcs = np.isin(motion, [Motion.ARC_CW, Motion.ARC_CCW])
@@ -90,7 +94,16 @@ def inspect_text(text: str, path: str = "<input>", *, dialect: str | None = None
         s_range_rpm=(float(s_on.min()), float(s_on.max())) if s_on.size else (0.0, 0.0),
         f_range_mm_min=(float(f_vals.min()), float(f_vals.max())) if f_vals.size else (0.0, 0.0),
         cut_length_mm=float(length[cut].sum()),
-        cut_time_min=float(feed_minutes(tp, None, max_feed_mm_min).sum()))
+        cut_time_min=float(feed_minutes(tp, None, max_feed_mm_min).sum()),
+        kinematics=tp.kinematics, tilt_range_deg=_tilt_range(tp, feed & known))
+
+
+def _tilt_range(tp, moves: np.ndarray) -> tuple:
+    """(lowest, highest) angle of the tool axis from +Z at the ends of ``moves``, deg."""
+    if tp.tool_axis is None or not moves.any():
+        return (0.0, 0.0)
+    tilt = tilt_deg(tp.tool_axis[1:][moves])
+    return (float(tilt.min()), float(tilt.max()))
 
 
 def render_inspection(info: Inspection, out) -> None:
@@ -107,12 +120,21 @@ def render_inspection(info: Inspection, out) -> None:
         f"F {info.f_range_mm_min[0]:g}..{info.f_range_mm_min[1]:g} mm/min")
     say(f"  cutting {info.cut_length_mm:.0f} mm in {info.cut_time_min:.1f} min at the "
         "programmed feed")
+    if info.kinematics is not None:
+        say(f"  5-axis: tool axes from {_axes_from(info.kinematics)}, tilted "
+            f"{info.tilt_range_deg[0]:.1f}..{info.tilt_range_deg[1]:.1f} deg from +Z on the "
+            "moves ncopt can plan")
     for line, why in info.opaque[:20]:
         say(f"  line {line}: '{why}' left alone")
     if len(info.opaque) > 20:
         say(f"  ... {len(info.opaque) - 20} more lines left alone")
     for w in info.warnings[:20]:
         say(f"  warning: {w}")
+
+
+def _axes_from(kinematics: str) -> str:
+    return "the program's tool vectors" if kinematics == "vector" else \
+        f"the rotary axes through the {kinematics} kinematics"
 
 
 def _name(tool: int) -> str:

@@ -21,7 +21,9 @@ import numpy as np
 
 from .errors import NcoptError
 from .expr import Params, Unknown
+from .feedmode import G93, G95, tip_feed_mm_min
 from .model import LineKind, LineState, Program, Toolpath
+from .orientation import Orientation, read_orientation, with_tool_axis
 from .refuse import MIN_ARC_RADIUS_MM, check_arc_centres, check_signs, check_words
 
 MM_PER_INCH = 25.4
@@ -36,12 +38,17 @@ G_UNITS = {200, 210}
 G_FEED_MODE = {930, 940, 950}
 G_COMP = {400, 410, 420, 411, 421}
 G_NON_MODAL_MOVE = {280, 300, 530, 920, 921, 922, 923, 520, 100, 281, 301}
+# lines whose axis words are not a move's target: those above, and the origins of
+# coordinate rotations and tilted planes (G68, G68.2-G68.4, Haas G268)
+G_NOT_A_TARGET = G_NON_MODAL_MOVE | {680, 682, 683, 684, 2680}
 CANNED = {730, 760, 810, 820, 830, 840, 850, 860, 870, 880, 890}
 
 # opaque keywords known not to move the machine (Sinumerik settings)
 HARMLESS_OPAQUE = {"MSG", "CYCLE832", "DEF", "STOPRE", "WORKPIECE", "SOFT", "BRISK",
                    "FFWON", "FFWOF", "COMPCAD", "COMPON", "COMPOF", "COMPSURF", "G642",
-                   "G641", "G64", "TRAFOOF", "UPATH", "SPATH", "FGROUP", "FNORM", "FLIN"}
+                   "G641", "G64", "TRAFOOF", "UPATH", "SPATH", "FGROUP", "FNORM", "FLIN",
+                   # TCP and orientation modes: ncopt.orientation reads them
+                   "TRAORI", "ORIWKS", "ORIMKS", "ORIVECT", "ORIAXES"}
 FLOW_CONTROL = {"IF", "GOTO", "WHILE", "DO", "END", "REPEAT", "CALL", "PCALL", "LOOP",
                 "ENDLOOP", "FOR", "ENDFOR", "ENDIF", "ELSE", "ENDWHILE", "RET", "M17"}
 
@@ -57,8 +64,13 @@ class StartState:
     chord_tol_mm: float = 0.005
 
 
-def interpret(prog: Program, start: StartState = StartState()) -> Toolpath:
+def interpret(prog: Program, start: StartState = StartState(),
+              kinematics: str | None = None) -> Toolpath:
     """Interpret a program into cutter locations.
+
+    ``kinematics``: the machine's kinematics (``ncopt.kinematics``) for
+    programs that tilt the tool with rotary axes; None: such moves are not
+    planned.
 
     Returns
     -------
@@ -73,10 +85,12 @@ def interpret(prog: Program, start: StartState = StartState()) -> Toolpath:
     executed = _executed_lines(prog, lines, warnings)
     _check_semantics(prog, lines, executed)
     modal = _modal_state(lines, start, executed)
+    orient = read_orientation(prog, lines, modal, executed, kinematics)
     pos_mm, known = _positions(prog, lines, modal, executed, poisoned, warnings)
     _check_comp_corners(prog, lines, modal, pos_mm, known, executed)
-    tp = _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings)
-    return replace(tp, lines=_line_state(prog, lines, modal, executed))
+    tp = _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings, orient)
+    tp = replace(tp, lines=_line_state(prog, lines, modal, executed))
+    return tp if orient is None else with_tool_axis(tp, orient)
 
 
 class _LineTable:
@@ -408,7 +422,7 @@ def _unknown_events(prog, lines, modal, executed, poisoned, warnings) -> np.ndar
 def _positions(prog, lines, modal, executed, poisoned, warnings):
     """Absolute positions in mm per line (n,3) and whether each axis is known."""
     events = _unknown_events(prog, lines, modal, executed, poisoned, warnings)
-    special = lines.has_g(G_NON_MODAL_MOVE) | np.isin(modal.motion, list(CANNED))
+    special = lines.has_g(G_NOT_A_TARGET) | np.isin(modal.motion, list(CANNED))
     scale = np.where(modal.inch, MM_PER_INCH, 1.0)
     pos = np.zeros((lines.n, 3))
     known = np.zeros((lines.n, 3), dtype=bool)
@@ -429,11 +443,14 @@ def _positions(prog, lines, modal, executed, poisoned, warnings):
     return pos, known
 
 
-def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings) -> Toolpath:
+def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
+                  orient: Orientation | None = None) -> Toolpath:
     motion = modal.motion
     axes_present = lines.present("X") | lines.present("Y") | lines.present("Z")
+    if orient is not None:  # a rotary-only move turns the tool: a move of its own
+        axes_present = axes_present | orient.rotary_move
     arc_words = lines.present("I") | lines.present("J") | lines.present("K") | lines.present("R")
-    special = lines.has_g(G_NON_MODAL_MOVE)
+    special = lines.has_g(G_NOT_A_TARGET)
     is_lin = np.isin(motion, [0, 10]) & axes_present
     is_arc = np.isin(motion, [20, 30]) & (axes_present | arc_words)
     move = (is_lin | is_arc) & executed & ~special & (prog.line_kind == LineKind.WORDS)
@@ -443,7 +460,6 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings) 
     end_known = all_known[move_lines]
     scale = np.where(modal.inch, MM_PER_INCH, 1.0)
     feed_mm = modal.feed * scale
-    inverse_or_rev = modal.feed_mode != 940
     comp = modal.comp != 400
     arcs = np.flatnonzero(is_arc[move_lines])
     pieces = [None] * move_lines.shape[0]
@@ -474,19 +490,29 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings) 
     rep = lambda a, first: np.concatenate(([first], np.repeat(a, counts)))  # noqa: E731
     line = rep(move_lines, -1).astype(np.int32)
     mcode = rep(np.nan_to_num(motion[move_lines], nan=-10) // 10, -1).astype(np.int8)
-    seg_known = end_known & prev_known
-    seg_known &= ~inverse_or_rev[move_lines] & ~comp[move_lines]
+    feed_mm, g93 = feed_mm[move_lines], modal.feed_mode[move_lines] == G93
+    g93_ok = np.ones(move_lines.shape[0], dtype=bool)
+    if g93.any():  # the tip feed each F (1 / minutes) stands for, over the whole block
+        block_len = np.add.reduceat(lengths[1:], rows[:-1])
+        feed_mm, g93_ok = tip_feed_mm_min(modal.feed_mode[move_lines],
+                                          lines.value("F")[move_lines], feed_mm, block_len)
+    seg_known = end_known & prev_known & g93_ok
+    seg_known &= (modal.feed_mode[move_lines] != G95) & ~comp[move_lines]
+    if orient is not None:
+        seg_known &= orient.blocked[move_lines] == 0
     known_pts = rep(seg_known, False)
     feed_moves = np.isin(motion[move_lines], [10, 20, 30])
-    _warn_unplanned(prog, move_lines[feed_moves], seg_known[feed_moves], modal, warnings)
+    no_f = np.zeros(lines.n, dtype=bool)
+    no_f[move_lines[~g93_ok]] = True
+    _warn_unplanned(prog, move_lines[feed_moves], seg_known[feed_moves], modal, warnings, orient,
+                    no_f)
     return Toolpath(
         xyz_mm=xyz, line=line, motion=mcode,
-        feed_mm_min=rep(np.where(mcode_is_feed(motion[move_lines]), feed_mm[move_lines],
-                                 np.nan), np.nan),
+        feed_mm_min=rep(np.where(mcode_is_feed(motion[move_lines]), feed_mm, np.nan), np.nan),
         spindle_rpm=rep(modal.spindle_rpm[move_lines], 0.0),
         seg_len_mm=lengths, known=known_pts, tool=rep(modal.tool[move_lines], -1).astype(np.int32),
         line_inch=modal.inch, spindle_on=rep(modal.spindle_on[move_lines], False),
-        warnings=tuple(warnings))
+        warnings=tuple(warnings), inverse_time=rep(g93, False) if g93.any() else None)
 
 
 def mcode_is_feed(motion_x10: np.ndarray) -> np.ndarray:
@@ -501,7 +527,8 @@ def _check_feed(prog, modal, move_lines) -> None:
         _fail(prog, bad[0], "feed move with zero feed rate; add an F word before it")
 
 
-def _warn_unplanned(prog, move_lines, seg_known, modal, warnings) -> None:
+def _warn_unplanned(prog, move_lines, seg_known, modal, warnings, orient=None,
+                    no_f=None) -> None:
     unknown = move_lines[~seg_known]
     if unknown.size == 0:
         return
@@ -510,8 +537,12 @@ def _warn_unplanned(prog, move_lines, seg_known, modal, warnings) -> None:
     stops = np.concatenate((unknown[breaks], [unknown[-1]]))
     for a, b in list(zip(starts.tolist(), stops.tolist()))[:20]:
         why = "position not known"
-        if modal.feed_mode[a] != 940:
-            why = "inverse-time or per-revolution feed (G93/G95)"
+        if orient is not None and orient.blocked[a]:
+            why = orient.reasons[orient.blocked[a]]
+        elif modal.feed_mode[a] == G95:
+            why = "per-revolution feed (G95)"
+        elif no_f is not None and no_f[a]:
+            why = "an inverse-time (G93) block without its own F word"
         elif modal.comp[a] != 400:
             why = "cutter radius compensation (G41/G42) active"
         warnings.append(f"{prog.path}:{a + 1}-{b + 1}: not planned ({why}); S/F left as programmed")

@@ -18,6 +18,11 @@ from typing import NamedTuple
 import numpy as np
 
 
+#: ``Program.word_letter`` codes of the Sinumerik tool vector words ``A3=``, ``B3=``,
+#: ``C3=`` (not ASCII letters, so they never mix with the A, B, C rotary axis words)
+VECTOR_WORD_CODES = {"A": 0x81, "B": 0x82, "C": 0x83}
+
+
 class LineKind(IntEnum):
     """What a source line is, as far as ncopt is concerned."""
 
@@ -63,7 +68,9 @@ class Program:
     word_line : (n_words,) int32
         0-based line of each word, non-decreasing.
     word_letter : (n_words,) uint8
-        Upper-case ASCII code of the word's letter (``ord('X')``).
+        Upper-case ASCII code of the word's letter (``ord('X')``); the Sinumerik
+        tool vector words ``A3=`` ``B3=`` ``C3=`` have the codes of
+        :data:`VECTOR_WORD_CODES`.
     word_value : (n_words,) float64
         Numeric value; NaN where the value is an expression.
     word_start, word_end : (n_words,) int64
@@ -178,6 +185,23 @@ class Toolpath:
         The modal state per source line.
     warnings : tuple[str, ...]
         Located messages about lines left alone.
+    tool_axis : (n, 3) float64 or None
+        Unit tool axis ``e`` at each point, from the tip toward the spindle, in
+        the part frame (the frame of ``xyz_mm``: a tilted working plane's points
+        are carried into it).  Between two points the axis is their normalised
+        blend (``ncopt.kinematics.blend``), or where both have ``tool_angles_deg``
+        the axis of the angles turned linearly.  None: +Z everywhere (3-axis; the
+        fast path).  Rows of moves ncopt does not plan may hold +Z.
+    tool_angles_deg : (n, 3) float64 or None
+        A B C at each point where the machine's kinematics gave the axis (NaN
+        elsewhere); None when none did.
+    kinematics : str or None
+        What gave the tool axes: a name of ``ncopt.kinematics.KINEMATICS``,
+        ``"vector"`` (tool vectors in the program), or None (the tool never tilts).
+    inverse_time : (n,) bool or None
+        The move is in G93: its ``feed_mm_min`` is the tip feed its F word (1 /
+        minutes) stands for, F x the block's length (``ncopt.feedmode``).  None:
+        no G93 move.
     """
 
     xyz_mm: np.ndarray
@@ -192,11 +216,17 @@ class Toolpath:
     spindle_on: np.ndarray | None = None
     lines: LineState | None = None
     warnings: tuple = ()
+    tool_axis: np.ndarray | None = None
+    kinematics: str | None = None
+    inverse_time: np.ndarray | None = None
+    tool_angles_deg: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = self.xyz_mm.shape[0]
         if self.xyz_mm.shape != (n, 3):
             raise ValueError(f"xyz_mm must be (n, 3), got {self.xyz_mm.shape}")
+        if self.tool_axis is not None and self.tool_axis.shape != (n, 3):
+            raise ValueError(f"tool_axis must be ({n}, 3), got {self.tool_axis.shape}")
         for name in ("line", "motion", "feed_mm_min", "spindle_rpm", "seg_len_mm", "known", "tool"):
             arr = getattr(self, name)
             if arr.shape != (n,):

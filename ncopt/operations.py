@@ -213,8 +213,18 @@ class _Samples:
 def _samples(tp: Toolpath, points: np.ndarray, spacing_mm: float) -> _Samples:
     """Samples ``spacing_mm`` apart along the moves ending at ``points`` (indices into the
     toolpath), taken one after the other; at most ``MAX_SAMPLES`` (the spacing grows for
-    long operations), so a million blocks cost no more than a few thousand."""
+    long operations), so a million blocks cost no more than a few thousand.
+
+    5 axes: with one tilted tool axis over them (3+2) the moves are seen in a frame whose
+    Z is that axis (levels and slopes along the tool); where the axis turns (simultaneous
+    5-axis) a move with the tool tilted follows the surface, whatever its tip's Z."""
     a, b = tp.xyz_mm[points - 1], tp.xyz_mm[points]
+    turning = np.zeros(points.shape, dtype=bool)
+    frame = _tool_frame(tp, points)
+    if frame is not None:
+        a, b = a @ frame.T, b @ frame.T
+    elif tp.tool_axis is not None and points.size:
+        turning = np.any(np.abs(tp.tool_axis[points][:, :2]) > 1e-9, axis=1)
     d = b - a
     length = np.linalg.norm(d, axis=1)
     cum = np.concatenate(([0.0], np.cumsum(length)))
@@ -225,9 +235,30 @@ def _samples(tp: Toolpath, points: np.ndarray, spacing_mm: float) -> _Samples:
     seg = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, max(points.size - 1, 0))
     frac = (s - cum[seg]) / np.maximum(length[seg], 1e-12)
     xyz = a[seg] + d[seg] * frac[:, None]
-    sloped = np.abs(d[:, 2]) > SLOPE * np.maximum(length, 1e-12)
+    sloped = (np.abs(d[:, 2]) > SLOPE * np.maximum(length, 1e-12)) | turning
     weight = np.full(s.shape, spacing)
     return _Samples(xyz, s, weight, sloped[seg], points[seg])
+
+
+def _tool_frame(tp: Toolpath, points: np.ndarray) -> np.ndarray | None:
+    """The rotation into the frame whose Z is the one tool axis of the moves ending at
+    ``points`` (3+2), None for +Z or a turning axis."""
+    if tp.tool_axis is None or not points.size:
+        return None
+    e = tp.tool_axis[points]
+    if not np.allclose(e, e[0], atol=1e-9) or np.allclose(e[0], (0.0, 0.0, 1.0), atol=1e-9):
+        return None
+    return _to_axis(e[0])
+
+
+def _to_axis(e: np.ndarray) -> np.ndarray:
+    """A rotation taking the unit vector ``e`` to +Z (the identity for +Z)."""
+    z = np.array([0.0, 0.0, 1.0])
+    v, c = np.cross(e, z), float(np.dot(e, z))
+    if np.linalg.norm(v) < 1e-12:
+        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    k = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    return np.eye(3) + k + k @ k / (1.0 + c)
 
 
 def _neighbour_pass(sm: _Samples, radius_mm: float) -> np.ndarray:
@@ -253,6 +284,9 @@ def _retraced(tp: Toolpath, geo: np.ndarray, sm: _Samples, radius_mm: float) -> 
     if flat.size == 0 or geo.size < 2:
         return out
     a, b = tp.xyz_mm[geo - 1], tp.xyz_mm[geo]
+    frame = _tool_frame(tp, geo)  # 3+2: the samples are in the tool's frame, so the moves too
+    if frame is not None:
+        a, b = a @ frame.T, b @ frame.T
     length = np.linalg.norm(b - a, axis=1)
     s_end = np.cumsum(length)
     stride = max(1, -(-flat.size // RETRACE_SAMPLES))  # every stride-th sample judged

@@ -9,7 +9,10 @@ has the same normals.  At every cutter-centre point:
   their straight distance;
 * the normal is the unit vector perpendicular to ``t`` that best fits the
   offsets to those neighbours (a weighted 2x2 least-squares problem, solved in
-  closed form for all points at once), oriented toward the tool (+Z).
+  closed form for all points at once), oriented toward the tool (+Z, or in 5
+  axes the tool axis at the point: ball centres trace the part's offset surface
+  whatever the axis, so the estimate holds; "vertical" below means "along the
+  tool axis").
 
 Where neighbours lie on one side only (the first and last pass, the edge of
 the machined area) the fit is one-sided and a curved surface tilts it: such
@@ -54,7 +57,8 @@ class PathNormals:
 
 
 def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarray,
-                 k: int = K_NEIGHBOURS, workers: int = -1) -> PathNormals:
+                 k: int = K_NEIGHBOURS, workers: int = -1,
+                 axis: np.ndarray | None = None) -> PathNormals:
     """Estimate surface normals at cutter-centre points.
 
     Parameters
@@ -63,9 +67,10 @@ def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarra
     path_mm : (m,) cumulative path length at each point, mm
     cutting : (m,) bool, points on cutting moves (only these are neighbours)
     workers : threads for the neighbour search and the fit (-1: every CPU available)
+    axis : (m, 3) unit tool axes (5 axes), or None for +Z
     """
     m = centers_mm.shape[0]
-    normal = np.tile([0.0, 0.0, 1.0], (m, 1))
+    normal = np.tile([0.0, 0.0, 1.0], (m, 1)) if axis is None else axis.copy()
     confidence = np.zeros(m, dtype=np.int8)
     idx = np.flatnonzero(cutting)
     if idx.size < 2:
@@ -80,7 +85,8 @@ def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarra
         dist, nb = tree.query(pts[a:b], k=kk, workers=1)
         dist, nb = np.atleast_2d(dist)[:, 1:], np.atleast_2d(nb)[:, 1:]
         other = np.abs(s[nb] - s[a:b, None]) > OTHER_PASS_RATIO * dist + 1e-9
-        n, conf, closest = _fit_cross(pts[a:b], tangent[a:b], pts[nb], dist, other)
+        up = None if axis is None else axis[idx[a:b]]
+        n, conf, closest = _fit_cross(pts[a:b], tangent[a:b], pts[nb], dist, other, up)
         normal[idx[a:b]] = n
         confidence[idx[a:b]] = conf
         return closest
@@ -109,17 +115,18 @@ def _tangents(pts: np.ndarray, s: np.ndarray) -> np.ndarray:
     return t
 
 
-def _fit_cross(pts, tangent, nb_pts, dist, other):
+def _fit_cross(pts, tangent, nb_pts, dist, other, axis=None):
     """Normal perpendicular to the tangent fitting the other-pass neighbours; also the
-    distance to the nearest other-pass point (inf where there is none)."""
-    up = np.array([0.0, 0.0, 1.0])
+    distance to the nearest other-pass point (inf where there is none).  ``axis``:
+    (m, 3) tool axes, None for +Z."""
+    up = np.array([0.0, 0.0, 1.0]) if axis is None else axis
     u = np.cross(tangent, up)  # horizontal, across the pass
     un = np.linalg.norm(u, axis=1)
     vertical = un < 1e-6  # a plunge: any horizontal direction will do
-    u[vertical] = [1.0, 0.0, 0.0]
+    u[vertical] = [1.0, 0.0, 0.0] if axis is None else _across(axis[vertical])
     u /= np.maximum(np.linalg.norm(u, axis=1), 1e-12)[:, None]
     v = np.cross(u, tangent)  # perpendicular to the tangent, in its vertical plane
-    v[v[:, 2] < 0] *= -1.0
+    v[_up(v, axis) < 0] *= -1.0
     off = nb_pts - pts[:, None, :]  # (m, k, 3)
     a = np.einsum("mkj,mj->mk", off, u)
     b = np.einsum("mkj,mj->mk", off, v)
@@ -136,7 +143,7 @@ def _fit_cross(pts, tangent, nb_pts, dist, other):
     beta = np.where(small, 1.0, beta)
     n = alpha[:, None] * u + beta[:, None] * v
     n /= np.maximum(np.linalg.norm(n, axis=1), 1e-12)[:, None]
-    n[n[:, 2] < 0] *= -1.0
+    n[_up(n, axis) < 0] *= -1.0
     has = other.any(axis=1)
     n[~has] = v[~has]  # no other pass near: no cross-slope
     side_pos = (other & (a > 0)).any(axis=1)
@@ -145,19 +152,46 @@ def _fit_cross(pts, tangent, nb_pts, dist, other):
     return n, conf.astype(np.int8), np.where(other, dist, np.inf).min(axis=1)
 
 
+def _up(v: np.ndarray, axis: np.ndarray | None) -> np.ndarray:
+    """(m,) component of each row along the tool axis (+Z when None)."""
+    return v[:, 2] if axis is None else np.einsum("ij,ij->i", v, axis)
+
+
+def _across(axis: np.ndarray) -> np.ndarray:
+    """(m, 3) unit vectors perpendicular to each tool axis (+X for +Z)."""
+    u = np.cross([0.0, 1.0, 0.0], axis)
+    small = np.linalg.norm(u, axis=1) < 0.5
+    u[small] = np.cross(axis[small], [1.0, 0.0, 0.0])
+    return u / np.linalg.norm(u, axis=1)[:, None]
+
+
 def contacts_from_path(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarray,
-                       cutter: Cutter) -> tuple[Contacts, PathNormals]:
-    """Contacts (CC point, normal, R_eff) from the toolpath alone."""
-    est = path_normals(centers_mm, path_mm, cutting)
+                       cutter: Cutter, axis: np.ndarray | None = None
+                       ) -> tuple[Contacts, PathNormals]:
+    """Contacts (CC point, normal, R_eff) from the toolpath alone; ``axis`` (m, 3) the
+    tool axis per point (None: +Z)."""
+    est = path_normals(centers_mm, path_mm, cutting, axis=axis)
     cc = centers_mm - cutter.corner_radius_mm * est.normal
     planning_normal = tilt_from_axis(est.normal, np.where(est.confidence == ONE_SIDED,
-                                                          np.radians(ONE_SIDED_TILT_DEG), 0.0))
-    return Contacts(cc_mm=cc, normal=est.normal, r_eff_mm=r_eff_mm(cutter, planning_normal),
+                                                          np.radians(ONE_SIDED_TILT_DEG), 0.0),
+                                     axis)
+    return Contacts(cc_mm=cc, normal=est.normal,
+                    r_eff_mm=r_eff_mm(cutter, planning_normal, axis),
                     cutting=cutting.copy()), est
 
 
-def tilt_from_axis(normal: np.ndarray, angle_rad: np.ndarray) -> np.ndarray:
-    """Normals turned away from +Z by ``angle_rad`` in their vertical plane."""
+def tilt_from_axis(normal: np.ndarray, angle_rad: np.ndarray,
+                   axis: np.ndarray | None = None) -> np.ndarray:
+    """Normals turned away from the tool axis (+Z, or ``axis`` (m, 3)) by ``angle_rad``
+    in the plane of both."""
+    if axis is not None:
+        c = np.clip(np.einsum("ij,ij->i", normal, axis), -1.0, 1.0)
+        side = normal - c[:, None] * axis
+        hn = np.linalg.norm(side, axis=1)
+        side = np.where(hn[:, None] > 1e-12, side / np.maximum(hn, 1e-12)[:, None],
+                        _across(axis))
+        polar = np.arccos(c) + angle_rad
+        return np.cos(polar)[:, None] * axis + np.sin(polar)[:, None] * side
     polar = np.arccos(np.clip(normal[:, 2], -1.0, 1.0)) + angle_rad
     horiz = normal[:, :2]
     hn = np.linalg.norm(horiz, axis=1)

@@ -410,6 +410,12 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
             if target >= cur + step:  # rise; the fz band bounds it by the real speed
                 up = floor(min(target, real * r))
                 new = float(up) if up >= cur + step else cur
+                if cut_b and band and new < real:
+                    # above the command, the real speed still falls (from a faster S
+                    # the program keeps): the fz band bounds that fall as any other
+                    new = max(new, float(math.ceil(real / r)))
+                    if 0 < new - cur < step:  # target >= cur + step: vc stays under it
+                        new = cur + step
             elif target < cur:  # fall now, with margin against chatter
                 # the spindle limit may leave the real speed up to 1 RPM above an integer
                 # command (the ramp tracking keeps the real value); the fz band may not

@@ -32,6 +32,9 @@ from .tools import required_rpm
 from .tooltable import BALL, BULL, cutter_for, tool_table
 
 FEED_MATCH = 1e-3  # mm/min: a block at the cutting feed
+# G93: a block's tip feed is its F word (1 / minutes) times its length, both rounded in
+# the program: within this share of the cutting feed it is that feed
+FEED_MATCH_G93 = 1e-3
 PLUNGE = 0.99  # a feed move down within 8 deg of the axis plunges: fz as programmed
 
 
@@ -199,8 +202,10 @@ def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, sour
     d = tp.xyz_mm[fp] - tp.xyz_mm[np.maximum(fp - 1, 0)]
     plunge = -d[:, 2] > PLUNGE * np.maximum(np.linalg.norm(d, axis=1), 1e-12)
     vertical = np.abs(d[:, 2]) > 0.9 * np.maximum(np.linalg.norm(d, axis=1), 1e-12)
+    match = FEED_MATCH if tp.inverse_time is None else np.where(
+        tp.inverse_time[fp], FEED_MATCH_G93 * np.abs(feed), FEED_MATCH)
     s_ref, off_feed, f0, s0 = _feed_intent(blocks, feed, tp.spindle_rpm[fp], mine & ~vertical,
-                                           machine, cut, view.cutter, opts, intent)
+                                           machine, cut, view.cutter, opts, intent, match)
     # a cut off the cutting feed (a plunge at F1000 where the finish runs F279) goes as
     # fast as its own feed per revolution: the spindle changes less over it
     rev = feed / np.where(s_ref > 0, s_ref, np.nan)
@@ -359,7 +364,8 @@ def _back_at_fixed(s_cmd: np.ndarray, planned: np.ndarray, mine: np.ndarray,
     return out
 
 
-def _feed_intent(blocks, feed, s_prog, mine, machine, cut, cutter, opts, intent):
+def _feed_intent(blocks, feed, s_prog, mine, machine, cut, cutter, opts, intent,
+                 match=FEED_MATCH):
     """Which blocks of the operation run at another feed than its cutting feed (read
     from its ``mine`` blocks: plunges and retracts aside).
 
@@ -373,9 +379,9 @@ def _feed_intent(blocks, feed, s_prog, mine, machine, cut, cutter, opts, intent)
     cutting feed where its F is the one ncopt writes for the stamped fz at those speeds:
     so a second rewrite gives the same F."""
     if intent is None:
-        f0 = _cutting_feed(feed, blocks.length_mm, mine)
+        f0 = _cutting_feed(feed, blocks.length_mm, mine, not np.isscalar(match))
         s0 = _weighted_median(s_prog[mine], blocks.length_mm[mine]) if mine.any() else 0.0
-        return s_prog, np.abs(feed - f0) > FEED_MATCH, f0, s0
+        return s_prog, np.abs(feed - f0) > match, f0, s0
     s0, f0 = intent
     fixed = replace(blocks, planned=np.zeros_like(blocks.planned))
     k = planner.k_rpm2_per_mm(machine, cut, cutter.teeth)
@@ -393,11 +399,20 @@ def _feed_intent(blocks, feed, s_prog, mine, machine, cut, cutter, opts, intent)
     return s_ref, off, f0, s0
 
 
-def _cutting_feed(feed: np.ndarray, length: np.ndarray, mine: np.ndarray) -> float:
-    """The F most of the operation's length runs at (mm/min)."""
+def _cutting_feed(feed: np.ndarray, length: np.ndarray, mine: np.ndarray,
+                  inverse_time: bool = False) -> float:
+    """The F most of the operation's length runs at (mm/min).  With G93 in the program the
+    tip feeds carry the rounding of each block's own F word: feeds within
+    FEED_MATCH_G93 of each other count as one, and the feed is their weighted median."""
     f = np.round(feed[mine], 3)
     if f.size == 0:
         return float("nan")
+    if inverse_time:
+        key = np.round(np.log(np.maximum(f, 1e-9)) / np.log1p(FEED_MATCH_G93))
+        values, inv = np.unique(key, return_inverse=True)
+        w = np.bincount(inv.ravel(), weights=length[mine], minlength=values.size)
+        pick = inv.ravel() == int(np.argmax(w))
+        return _weighted_median(f[pick], length[mine][pick])
     values, inv = np.unique(f, return_inverse=True)
     w = np.bincount(inv.ravel(), weights=length[mine], minlength=values.size)
     return float(values[int(np.argmax(w))])
@@ -424,7 +439,8 @@ def nominal_cutting_data(tp: Toolpath, points: np.ndarray, cutter: Cutter,
                             "give --vc and --fz", path)
     weight = tp.seg_len_mm[idx]
     s = _weighted_median(tp.spindle_rpm[idx], weight)
-    f = _cutting_feed(tp.feed_mm_min[idx], weight, np.ones(idx.size, dtype=bool))
+    f = _cutting_feed(tp.feed_mm_min[idx], weight, np.ones(idx.size, dtype=bool),
+                      tp.inverse_time is not None)
     vc = np.pi * cutter.diameter_mm * s / 1000.0
     return CuttingData(vc_m_min=vc, fz_mm=f / (cutter.teeth * s))
 
@@ -558,7 +574,7 @@ def plan_program(prog: Program, tp: Toolpath, idx: planner.BlockIndex, job,
                            job.machine, job.options, prog.path, intent),
             lines=_lines(stamps, op)))
     if not plans:
-        exc = NothingToPlan(_nothing_why(ops, choices), prog.path)
+        exc = NothingToPlan(_nothing_why(ops, choices, tp), prog.path)
         exc.operations = tuple(ops)  # for reports: every operation and why it is left
         raise exc
     return Work(tuple(ops), scope, plans, choices, views, point_op, fits)
@@ -582,7 +598,18 @@ def _choices(prog, tp, job, plannable, stamps) -> dict:
                          "--diameter describes with --tool N", prog.path)
     table = tool_table(prog)
     inch = tp.line_inch is not None and bool(np.any(tp.line_inch))
-    return {t: choose_cutter(job, table, t, len(tools), inch, stamps) for t in tools}
+    choices = {t: choose_cutter(job, table, t, len(tools), inch, stamps) for t in tools}
+    return {t: _no_tilted_bull_nose(c, tp, plannable & (tp.tool == t)) for t, c in choices.items()}
+
+
+def _no_tilted_bull_nose(choice: ToolChoice, tp: Toolpath, points: np.ndarray) -> ToolChoice:
+    """A bull-nose whose tool axis tilts is not planned: its contact search assumes +Z,
+    and without a mesh its centre path is no offset surface when the axis turns."""
+    c = choice.cutter
+    if c is None or c.is_ball or tp.tool_axis is None or not np.any(tp.tool_axis[points, :2]):
+        return choice
+    return ToolChoice(None, "", "a bull-nose with a tilted tool axis: ncopt plans 5-axis "
+                      "moves with ball-end mills only")
 
 
 def decide(ops: list, choices: dict, job, tp: Toolpath, plannable: np.ndarray) -> list:
@@ -730,9 +757,10 @@ def unplannable_why(tp: Toolpath, op) -> str:
         return op.reason
     ls = tp.lines
     line = tp.line[feed]
+    located = _located_reason(tp, op)
     for bad, why in (
-            (~tp.known[feed], "position not known (after G28/G53/G92, a call, a cycle), G93/G95 "
-             "feed or cutter compensation"),
+            (~tp.known[feed], located or "position not known (after G28/G53/G92, a call, a "
+             "cycle), G95 feed or cutter compensation"),
             (~tp.spindle_on[feed], "the spindle is not on (no M3/M4)"),
             (~ls.s_known[line] | ~ls.f_known[line], "the S or F in force is not known (after a "
              "subprogram call, or an expression ncopt cannot evaluate)"),
@@ -743,10 +771,27 @@ def unplannable_why(tp: Toolpath, op) -> str:
     return "no feed move ncopt can place"
 
 
-def _nothing_why(ops, choices) -> str:
-    """Why nothing is planned, operation by operation (the first few)."""
+def _located_reason(tp: Toolpath, op) -> str:
+    """The first located 'not planned' warning of the interpreter inside ``op``'s lines
+    (the tool axis, G93 without F...), as ``line A-B: why``; "" when there is none."""
+    for w in tp.warnings:
+        head, sep, rest = w.partition(": not planned (")
+        lines = head.rsplit(":", 1)[-1].split("-")
+        if not sep or not all(x.isdigit() for x in lines):
+            continue
+        if op.first_line + 1 <= int(lines[-1]) and int(lines[0]) <= op.last_line + 1:
+            return f"line {head.rsplit(':', 1)[-1]}: {rest.rsplit('); S/F', 1)[0]}"
+    return ""
+
+
+def _nothing_why(ops, choices, tp: Toolpath | None = None) -> str:
+    """Why nothing is planned, operation by operation (the first few); where no
+    operation cuts, the first moves the interpreter left alone and why."""
     rows = [f"{o.name} ({o.lines}): {o.reason}" for o in ops if o.kind not in (NO_CUT,)]
     if not rows:
-        return "nothing to plan (no feed moves with a running spindle and a known position)"
+        first = next((w for w in (tp.warnings if tp is not None else ())
+                      if ": not planned (" in w), None)
+        more = f"; the first moves left alone: {first}" if first else ""
+        return f"nothing to plan (no feed moves with a running spindle and a known position{more})"
     more = f"; and {len(rows) - 6} more" if len(rows) > 6 else ""
     return "nothing to plan: " + "; ".join(rows[:6]) + more

@@ -3,7 +3,10 @@
 * :func:`plot_along_path`: spindle speed, feed, fz and effective diameter along
   the cut length, several programs overlaid (the paper's Figs. 13, 15, 24, 25);
 * :func:`plot_toolpath`: top and 3D views of the toolpath coloured by S, F or the
-  effective diameter (the paper's Fig. 17).
+  effective diameter (the paper's Fig. 17); in 5 axes the 3D view draws the tool
+  axis at a few hundred points and the title gives the range of its tilt.
+
+In 5 axes :func:`plot_along_path` adds the tool's tilt from +Z as a fifth panel.
 
 PNG, SVG or PDF, chosen by the file name; :func:`along_path_figure` and
 :func:`toolpath_figure` give the figures themselves (the HTML report embeds them
@@ -17,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .kinematics import tilt_deg
 from .simulate import SimReport, SimSeries
 
 MAX_POINTS = 20000  # per curve; min/max decimation keeps peaks visible
@@ -25,7 +29,7 @@ MAX_SCATTER = 200000  # toolpath samples drawn
 MIN_Z_ASPECT = 0.25
 LABELS = {"s_rpm": "spindle speed S [RPM]", "f_mm_min": "feed F [mm/min]",
           "fz_mm": "feed per tooth fz [mm]", "d_eff_mm": "effective diameter [mm]",
-          "vc_m_min": "cutting speed vc [m/min]"}
+          "vc_m_min": "cutting speed vc [m/min]", "tilt_deg": "tool tilt from +Z [deg]"}
 ALONG = ("s_rpm", "f_mm_min", "fz_mm", "d_eff_mm")
 
 
@@ -82,15 +86,17 @@ def along_path_figure(runs: list[tuple[str, SimSeries, SimReport]], title: str =
     toolpath) both stay visible; one legend sits above the panels, off the data.
     """
     plt = _pyplot()
-    fig, axes = plt.subplots(4, 1, figsize=(11, 10), sharex=True)
+    rows = ALONG + (("tilt_deg",) if any(s.tool_axis is not None for _, s, _ in runs) else ())
+    fig, axes = plt.subplots(len(rows), 1, figsize=(11, 2.5 * len(rows)), sharex=True)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for i, (label, series, report) in enumerate(runs):
         first = i == 0 and len(runs) > 1
         style = dict(lw=1.1, ls=(0, (5, 3)), zorder=4, color="#1a1a1a") if first else dict(
             lw=0.7, zorder=2, color=colours[i % len(colours)])
         x = cut_length_m(series)
-        for ax, name in zip(axes, ALONG):
-            xd, yd = decimate(x, getattr(series, name)[series.cutting], max_points=max_points)
+        for ax, name in zip(axes, rows):
+            y = _tilt(series) if name == "tilt_deg" else getattr(series, name)
+            xd, yd = decimate(x, y[series.cutting], max_points=max_points)
             ax.plot(xd, yd, label=f"{Path(label).name} ({report.cutting_time_min:.1f} min)"
                     if ax is axes[0] else None, **style)
     target = runs[0][2]
@@ -100,7 +106,7 @@ def along_path_figure(runs: list[tuple[str, SimSeries, SimReport]], title: str =
     for k in (1 - band, 1 + band):
         axes[2].axhline(target.fz_target_mm * k, color="tab:red", lw=0.8, ls=":", zorder=3,
                         label=f"band +-{target.band_pct:g} %" if k > 1 else None)
-    for ax, name in zip(axes, ALONG):
+    for ax, name in zip(axes, rows):
         ax.set_ylabel(LABELS[name])
         ax.grid(True, lw=0.3)
     axes[-1].set_xlabel("cut length [m]")
@@ -155,8 +161,33 @@ def toolpath_figure(series: SimSeries, color_by: str = "s_rpm", title: str = "",
     ax2.set_title("3D view" + (f" (heights x{stretch:.1f})" if stretch > 1.0 else ""))
     fig.colorbar(sc, ax=[ax1, ax2], label=LABELS.get(color_by, color_by), shrink=0.5,
                  orientation="horizontal", pad=0.12, aspect=40)
-    fig.suptitle(title or f"toolpath coloured by {LABELS.get(color_by, color_by)}")
+    tilt = _draw_axes(ax2, series, cut)
+    fig.suptitle(title or f"toolpath coloured by {LABELS.get(color_by, color_by)}" + tilt)
     return fig
+
+
+AXES_DRAWN = 300  # tool axes drawn in the 3D view of a 5-axis toolpath
+
+
+def _tilt(series: SimSeries) -> np.ndarray:
+    """(m,) the tool's tilt from +Z, deg (0 for a 3-axis program)."""
+    if series.tool_axis is None:
+        return np.zeros(len(series))
+    return tilt_deg(series.tool_axis)
+
+
+def _draw_axes(ax, series: SimSeries, cut: np.ndarray) -> str:
+    """Short tool-axis segments at up to AXES_DRAWN cutting samples; the tilt range."""
+    if series.tool_axis is None or not cut.any():
+        return ""
+    rows = np.flatnonzero(cut)
+    rows = rows[np.linspace(0, rows.size - 1, min(AXES_DRAWN, rows.size)).astype(int)]
+    p, e = series.xyz_mm[rows], series.tool_axis[rows]
+    size = 0.06 * float(np.max(np.ptp(series.xyz_mm[cut], axis=0))) or 1.0
+    ax.quiver(p[:, 0], p[:, 1], p[:, 2], e[:, 0], e[:, 1], e[:, 2], length=size,
+              color="k", linewidth=0.4, arrow_length_ratio=0.0)
+    tilt = tilt_deg(series.tool_axis[cut])
+    return f"; tool axis tilted {tilt.min():.1f}..{tilt.max():.1f} deg from +Z"
 
 
 def plot_toolpath(series: SimSeries, path: str | Path, color_by: str = "s_rpm",

@@ -10,7 +10,8 @@ A file may hold::
     default_machine = "tajmac"
     [machines.tajmac]      # accel_rad_s2, max_rpm, min_rpm, max_feed_mm_min,
     accel_rad_s2 = 227     # rapid_mm_min, control, min_s_interval_ms, decimal_point,
-                           # s_changes
+                           # s_changes, kinematics (5-axis: xyzac-trt, ..., see
+                           # ncopt.kinematics)
     max_rpm = 15000
     [tools.4]              # by T number or by name: type (ball | bull-nose),
     type = "ball"          # diameter_mm, corner_radius_mm, teeth
@@ -47,6 +48,7 @@ class MachineProfile:
     min_s_interval_ms: float = 0.0
     decimal_point: str | None = None  # Fanuc: calculator, is-b or is-c
     s_changes: str | None = None  # anywhere or between-passes (None: the control's default)
+    kinematics: str | None = None  # 5-axis: a name of ncopt.kinematics.NAMES
 
 
 @dataclass(frozen=True)
@@ -161,7 +163,17 @@ def _machine(name: str, m: dict, src: str) -> MachineProfile:
                           _number(m, "max_feed_mm_min", what, src, float("inf")),
                           _number(m, "rapid_mm_min", what, src, 10000.0), m.get("control"),
                           _number(m, "min_s_interval_ms", what, src, 0.0), m.get("decimal_point"),
-                          m.get("s_changes"))
+                          m.get("s_changes"), _kinematics(m, what, src))
+
+
+def _kinematics(m: dict, what: str, src: str) -> str | None:
+    from .kinematics import NAMES
+
+    name = m.get("kinematics")
+    if name is not None and name not in NAMES:
+        raise UsageError(f"{what}: kinematics must be one of {', '.join(NAMES)}, not {name!r}",
+                         src)
+    return name
 
 
 def _tool(key, t: dict, src: str) -> Cutter:

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .model import LineKind, Motion, Program, Toolpath
+from .orientation import tcp_switches
 from .planner import BlockIndex
 
 S_CODE, F_CODE = ord("S"), ord("F")
@@ -63,7 +64,8 @@ def scope(prog: Program, tp: Toolpath, idx: BlockIndex, point_op: np.ndarray,
     feed_line = np.zeros(n, dtype=bool)
     feed_line[tp.line[1:][tp.motion[1:] >= Motion.LINEAR]] = True
     never = never_edited(prog, tp)
-    fixed = ls.executed & ~planned_line & (feed_line | ls.canned | ls.call | never)
+    fixed = ls.executed & ~planned_line & (feed_line | ls.canned | ls.call
+                                           | (never & ~tcp_switches(prog)))
     fixed &= ~((prog.line_kind == LineKind.BLANK) & ~ls.block_delete)
     run = np.cumsum(fixed)
     active = np.zeros(int(run[-1]) + 1 if n else 1, dtype=bool)

@@ -18,8 +18,12 @@ Machine model
 * When the spindle starts (M3/M4 after a stop) the control waits for speed:
   the real speed is the commanded one at once.  The wait is not timed.
 * Moves the interpreter cannot place (the first move, moves after G28 or a
-  subprogram call, G93/G95 feed modes, cutter compensation) take no time and
-  are not evaluated; a warning counts them.
+  subprogram call, G95 feed mode, cutter compensation, a tool axis it cannot
+  read) take no time and are not evaluated; a warning counts them.  A G93
+  block lasts 1 / F minutes.
+* The tool axis comes from the program text (``--kinematics`` for rotary
+  angles), so a 5-axis program, or a 3-axis rewrite of one, is judged with
+  its real R_eff.
 
 Samples
 -------
@@ -49,12 +53,13 @@ import numpy as np
 
 from .api import Job, nominal_cutting_data, read_text
 from .stamp import read_stamps
-from .contacts import MAX_SAMPLES_PER_MOVE, path_contacts_at_samples, sample_points
+from .contacts import (MAX_SAMPLES_PER_MOVE, centre_offsets, path_contacts_at_samples,
+                       sample_axes, sample_points)
 from .errors import UsageError
 from .geometry import MeshIndex, contacts_from_mesh, load_stl
 from .interp import MM_PER_INCH, ffill, interpret
+from .kinematics import tilt_deg
 from .model import Contacts, Cutter, CuttingData, Machine, Motion, Program, Toolpath
-from .tools import center_offset_mm
 from .tooltable import BALL, BULL, cutter_for, tool_table
 
 __all__ = ["LagStretch", "SimReport", "SimSeries", "simulate_file", "simulate_program",
@@ -177,6 +182,7 @@ class SimSeries:
     d_eff_mm : effective cutting diameter ``2 R_eff`` (NaN where not evaluated)
     vc_m_min : ``pi d_eff S / 1000``
     cutting : the cutter touches the part on a feed move
+    tool_axis : (m, 3) unit tool axis from the program text (5 axes), None: +Z
     """
 
     dist_mm: np.ndarray
@@ -190,12 +196,13 @@ class SimSeries:
     d_eff_mm: np.ndarray
     vc_m_min: np.ndarray
     cutting: np.ndarray
+    tool_axis: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.dist_mm.shape[0])
 
     def write_csv(self, path: str | Path) -> None:
-        """Write the series as CSV with a header row."""
+        """Write the series as CSV with a header row (5 axes: and the tool's tilt from +Z)."""
         cols = np.column_stack((self.dist_mm, self.time_s, self.line, self.xyz_mm, self.s_rpm,
                                 self.s_cmd_rpm, self.f_mm_min, self.fz_mm, self.d_eff_mm,
                                 self.vc_m_min, self.cutting))
@@ -203,6 +210,9 @@ class SimSeries:
                   "d_eff_mm,vc_m_min,cutting")
         fmt = ["%.4f", "%.5f", "%d", "%.4f", "%.4f", "%.4f", "%.2f", "%.2f", "%.3f", "%.6f",
                "%.4f", "%.3f", "%d"]
+        if self.tool_axis is not None:
+            cols = np.column_stack((cols, tilt_deg(self.tool_axis)))
+            header, fmt = header + ",tilt_deg", fmt + ["%.3f"]
         np.savetxt(path, cols, fmt=fmt, delimiter=",", header=header, comments="")
 
 
@@ -259,7 +269,7 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
     if not sample_mm > 0:
         raise UsageError(f"sample spacing must be positive, got {sample_mm}", path)
     prog = read_text(prog_text, path, job)
-    tp = interpret(prog)
+    tp = interpret(prog, kinematics=job.kinematics)
     cutter, tool_mask = _evaluated_tool(prog, tp, job, path)
     job = replace(job, cutter=cutter)
     moves = _move_table(prog, tp, job, tool_mask)
@@ -485,10 +495,12 @@ def _sample(tp, moves, runs, job, sample_mm, mesh_index, contacts, path):
     with np.errstate(divide="ignore", invalid="ignore"):
         fz = np.where(moves.feed[mv], f / (job.cutter.teeth * s_real), np.nan)
     d_eff = 2.0 * r_eff
+    axis = sample_axes(tp, sample_mm)
     series = SimSeries(dist_mm=moves.d0_mm[mv] + frac * moves.length_mm[mv], time_s=time_s,
                        line=moves.line[mv], xyz_mm=xyz_u[uidx], s_rpm=s_real, s_cmd_rpm=s_cmd,
                        f_mm_min=f, fz_mm=fz, d_eff_mm=d_eff,
-                       vc_m_min=np.pi * d_eff * s_real / 1000.0, cutting=cand & touch)
+                       vc_m_min=np.pi * d_eff * s_real / 1000.0, cutting=cand & touch,
+                       tool_axis=None if axis is None else axis[uidx])
     return series, weight, mv
 
 
@@ -504,9 +516,12 @@ def _contact_radius(tp, job, xyz_u, uidx, cand, sample_mm, mesh_index, contacts,
                              "compute them on ncopt.contacts.sample_points with the same spacing",
                              path)
         r_u, cut_u = contacts.r_eff_mm[rows], contacts.cutting[rows]
-    else:
-        centers = xyz_u[rows] + np.array([0.0, 0.0, center_offset_mm(job.cutter)])
-        got = contacts_from_mesh(centers, mesh_index, job.cutter, tol_mm=job.contact_tol_mm)
+    else:  # the tool axis from the program text (5 axes), the centre along it
+        axis = sample_axes(tp, sample_mm)
+        axis = None if axis is None else axis[rows]
+        centers = xyz_u[rows] + centre_offsets(tp, job.cutter, axis)
+        got = contacts_from_mesh(centers, mesh_index, job.cutter, tol_mm=job.contact_tol_mm,
+                                 axis=axis)
         r_u, cut_u = got.r_eff_mm, got.cutting
     r_all = np.full(xyz_u.shape[0], np.nan)
     touch_all = np.zeros(xyz_u.shape[0], dtype=bool)
@@ -616,5 +631,6 @@ def _warnings(path: str, tp: Toolpath, moves: _Moves, machine: Machine,
     unknown = np.flatnonzero(~moves.known & (moves.rapid | moves.feed))[1:]
     if unknown.size:
         out.append(f"{path}:{moves.line[unknown[0]]}: {unknown.size} moves from an unknown "
-                   "position or in G93/G95 or G41/G42 mode are not timed nor evaluated")
+                   "position, in G95 or G41/G42 mode or with a tool axis ncopt cannot read are "
+                   "not timed nor evaluated")
     return tuple(out)

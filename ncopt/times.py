@@ -4,8 +4,10 @@
 the time of every feed move (G1, G2, G3) whose start and end the interpreter knows, at
 its programmed F (capped at the machine's highest feed when one is known), and the
 *rapid time* as the known G0 moves at the machine's rapid rate.  Moves from an unknown
-position (after G28, a subprogram call...) and inverse-time or per-revolution feeds
-(G93, G95) are not timed; the count of such moves is reported instead.
+position (after G28, a subprogram call...) and per-revolution feeds (G95) are not
+timed; the count of such moves is reported instead.  An inverse-time (G93) move is
+timed by the tip feed its F stands for (``ncopt.feedmode``): its block lasts 1 / F
+minutes, a rotary-only one too.
 """
 
 from __future__ import annotations
@@ -29,6 +31,9 @@ def feed_minutes(tp: Toolpath, feed_mm_min: np.ndarray | None = None,
     timed[0] = False
     out = np.zeros(tp.n)
     out[timed] = tp.seg_len_mm[timed] / f[timed]
+    if tp.inverse_time is not None:  # a rotary-only G93 block: F is its own word
+        turn = timed & tp.inverse_time & (tp.seg_len_mm == 0)
+        out[turn] = 1.0 / f[turn]
     return out
 
 

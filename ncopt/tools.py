@@ -1,15 +1,17 @@
 """Cutter shapes: effective cutting radius from a contact normal.
 
-Three-axis milling only: the tool axis is ``e = +Z``.  A ball-end mill of
+The tool axis ``e`` is a unit vector from the tip toward the spindle: +Z in
+3-axis milling (``axis=None``), any direction in 5-axis.  A ball-end mill of
 radius ``R`` and a bull-nose (toroidal) mill of radius ``R`` with corner
 radius ``r`` are the same family: the ball is the case ``r == R``.
 
-Geometry (METHOD.md, "Effective cutting radius, contact-point method"):
+Geometry (METHOD.md, "Effective cutting radius, contact-point method", the
+paper's eq. (1)), with ``c = n . e`` (``nz`` in 3 axes):
 
 * ball: the CC point is ``SC - R n`` and its distance from the tool axis is
-  ``R_eff = R sqrt(1 - nz^2)``;
-* bull-nose, contact on the torus: ``R_eff = (R - r) + r sqrt(1 - nz^2)``.
-  As ``nz -> 1`` the contact leaves the torus for the flat bottom (the inner
+  ``R_eff = R sqrt(1 - c^2)``, i.e. ``R sin(angle(n, e))``;
+* bull-nose, contact on the torus: ``R_eff = (R - r) + r sqrt(1 - c^2)``.
+  As ``c -> 1`` the contact leaves the torus for the flat bottom (the inner
   edge of the torus, then the whole flat disc).  ``R - r`` is the right limit:
   it is the radius of the torus' inner edge, where the cutting edge meets the
   flat, and it is what the formula gives at ``nz = 1``.  The flat disc itself
@@ -26,7 +28,7 @@ from ncopt.model import Cutter
 __all__ = ["r_eff_mm", "center_offset_mm", "required_rpm"]
 
 
-def r_eff_mm(cutter: Cutter, normal: np.ndarray) -> np.ndarray:
+def r_eff_mm(cutter: Cutter, normal: np.ndarray, axis: np.ndarray | None = None) -> np.ndarray:
     """Effective cutting radius at a contact, from the surface normal there.
 
     Parameters
@@ -35,7 +37,9 @@ def r_eff_mm(cutter: Cutter, normal: np.ndarray) -> np.ndarray:
         Ball (``corner_radius_mm == radius_mm``) or bull-nose.
     normal : (m, 3) float64
         Unit outward surface normal at the CC point (oriented toward the tool).
-        Only ``nz`` is used; it is clipped to ``[-1, 1]`` against round-off.
+        Only ``n . e`` is used; it is clipped to ``[-1, 1]`` against round-off.
+    axis : (m, 3) float64 or None
+        Unit tool axis at each contact; None: +Z (``n . e = nz``).
 
     Returns
     -------
@@ -48,7 +52,8 @@ def r_eff_mm(cutter: Cutter, normal: np.ndarray) -> np.ndarray:
     n = np.asarray(normal, dtype=np.float64)
     if n.ndim != 2 or n.shape[1] != 3:
         raise ValueError(f"normal must be (m, 3), got {n.shape}")
-    nz = np.clip(n[:, 2], -1.0, 1.0)
+    c = n[:, 2] if axis is None else np.einsum("ij,ij->i", n, axis)
+    nz = np.clip(c, -1.0, 1.0)
     flat_mm = cutter.radius_mm - cutter.corner_radius_mm
     return flat_mm + cutter.corner_radius_mm * np.sqrt(1.0 - nz * nz)
 
@@ -66,9 +71,10 @@ def center_offset_mm(cutter: Cutter) -> float:
     Returns
     -------
     float
-        mm to add to the programmed Z to get the centre used by
-        :func:`ncopt.geometry.contacts_from_mesh`: ``r`` (the corner radius,
-        ``R`` for a ball) for tip-programmed tools, ``0`` for centre-programmed.
+        mm to go from the programmed point along the tool axis (+Z in 3 axes)
+        to the centre used by :func:`ncopt.geometry.contacts_from_mesh`: ``r``
+        (the corner radius, ``R`` for a ball) for tip-programmed tools, ``0``
+        for centre-programmed.
     """
     if cutter.tool_point == "center":
         return 0.0

@@ -1,6 +1,10 @@
 """LinuxCNC's RS-274NGC interpreter (``rs274`` from Debian's linuxcnc-uspace) as
 an independent judge of rewrites: nobody here wrote it.
 
+The canonical motion calls carry every axis, A B C included; in G93 rs274 turns each
+block's F (1 / minutes) into the feed rate over the block's length, and
+:func:`feed_in_program_units` turns it back.
+
 ``canon(text)`` runs ``rs274 -g`` and returns the canonical calls; constructs it
 rejects that are dialect, not geometry, are stripped from *both* programs
 before the comparison (see ``STRIPPED``), and the tests say so.
@@ -23,6 +27,8 @@ STRIPPED = (
     (re.compile(r"(?<![A-Za-z])[Dd]\s*\d+(?![.\d])(?=[^()\n]*$)", re.M), ""),  # D01 without G41/G42
     (re.compile(r"^\s*[Oo]\d+\b(?![^(\n]*\b(?:sub|call|if|while|do|endsub)\b)", re.M), ""),  # O1001
     (re.compile(r"[\x01-\x08\x0e-\x1f\x7f]"), ""),  # tape leader control codes
+    # M428-M430 switch kinematics in LinuxCNC's 5-axis sim configs (remaps rs274 alone lacks)
+    (re.compile(r"(?<![A-Za-z0-9.])[Mm]\s*4(?:28|29|30)(?![\d.])"), ""),
 )
 _G80 = re.compile(r"\b[Gg]0*80\b")
 _MOTION = re.compile(r"\b[Gg]0*[0-3]\b(?!\.)")
@@ -53,6 +59,12 @@ def strip_dialect(text: str) -> str:
 def tool_table(path: Path) -> Path:
     path.write_text("".join(f"T{t} P{t} Z0 D6 ;judge\n" for t in range(1, 100)))
     return path
+
+
+def feed_in_program_units(feed: float, inverse_time: bool, length: float) -> float:
+    """The F word that gives rs274's feed rate: itself in G94, feed / length in G93
+    (rs274 reports F x the move's length for an inverse-time move)."""
+    return feed / length if inverse_time and length > 0 else feed
 
 
 def canon(text: str, workdir: Path | None = None) -> Canon:

@@ -339,7 +339,8 @@ def test_inspect_json():
     assert set(info) == {"path", "dialect", "dialect_marks", "units", "lines", "blocks",
                          "moves", "feed_moves", "rapids", "arcs", "unknown_moves", "tools",
                          "tools_used", "opaque", "warnings", "s_range_rpm", "f_range_mm_min",
-                         "cut_length_mm", "cut_time_min"}
+                         "cut_length_mm", "cut_time_min", "kinematics", "tilt_range_deg"}
+    assert info["kinematics"] is None and info["tilt_range_deg"] == [0.0, 0.0]  # 3 axes
     assert info["path"] == str(BOWL_MPF)
     assert (info["dialect"], info["units"], info["lines"]) == ("sinumerik", "mm", 21902)
     assert info["dialect_marks"]  # why the dialect was chosen

@@ -339,3 +339,29 @@ def test_the_lowest_speed_wins_over_a_feed_limited_top_below_it():
     em, f, _ = planner.plan(b, machine, CUT, TEETH, LOOSE)
     assert np.all(em.s_cmd_rpm == 3000.0)
     assert np.all(f <= 200.0 + 1e-9)
+
+
+def test_a_command_under_a_spindle_still_falling_keeps_the_fz_band():
+    """The program keeps 529 then 346 RPM in two short blocks ncopt leaves alone; the real
+    spindle is still at ~522 RPM when the next cut begins, planned at ~457.8.  Flooring
+    the command to 457 would let the real speed fall by more than the fz band's ratio
+    within that block (fz over its band at the block's slowest speed): the command is
+    held at the band's floor, ceil(522.16 / ratio) = 458, one RPM within the profile."""
+    b = planner.Blocks(length_mm=np.array([0.417, 0.01, 1.476]),
+                       req_rpm=np.array([np.inf, np.inf, 20633.6]),
+                       cutting=np.array([False, False, True]),
+                       planned=np.array([False, False, True]),
+                       time_s=np.array([0.417, 0.001, 1.476]),
+                       fixed_rpm=np.array([529.0, 346.0, 560.0]))
+    machine = Machine(accel_rad_s2=716.4137, max_rpm=8657.4, min_rpm=345.36,
+                      max_feed_mm_min=5000.0)
+    cut = CuttingData(vc_m_min=100.0, fz_mm=0.15074388)
+    opts = PlanOptions(min_rpm_step=10.0, fz_tolerance=0.0665056)
+    profile = planner.lookahead(b, machine, cut, 4, opts)
+    incs = planner.increments(b, machine, profile.k_rpm2_per_mm)
+    s_lo, s_hi = planner.speed_limits(machine, cut, 4)
+    ratio = planner.max_speed_ratio(opts, cut, 4, float(profile.cap_rpm[2]))
+    em = planner.emit_rpm(profile, b, incs, opts, s_lo, ratio, s_hi=s_hi)
+    assert em.s_high_rpm[2] == pytest.approx(522.1587531)  # the spindle entering the cut
+    assert em.s_high_rpm[2] / em.s_low_rpm[2] <= ratio
+    assert em.s_cmd_rpm[2] == 458.0 <= profile.s_rpm[2] + 1.0
