@@ -206,6 +206,12 @@ def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, sour
         tp.inverse_time[fp], FEED_MATCH_G93 * np.abs(feed), FEED_MATCH)
     s_ref, off_feed, f0, s0 = _feed_intent(blocks, feed, tp.spindle_rpm[fp], mine & ~vertical,
                                            machine, cut, view.cutter, opts, intent, match)
+    if intent is not None:
+        # a plunge still at the operation's own feed kept its F while ncopt raised S: its
+        # feed per revolution is the one the program gave it at its own S0, as in the
+        # first rewrite (a second rewrite then plans the same)
+        s_ref = np.where(plunge & (np.abs(feed - f0) <= 1.5 * max(opts.f_quantum_mm_min,
+                                                                  FEED_MATCH)), s0, s_ref)
     # a cut off the cutting feed (a plunge at F1000 where the finish runs F279) goes as
     # fast as its own feed per revolution: the spindle changes less over it
     rev = feed / np.where(s_ref > 0, s_ref, np.nan)

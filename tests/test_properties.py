@@ -245,6 +245,32 @@ def test_rewrite_keeps_geometry_changes_only_sf_and_is_idempotent(bowl_case, bow
     check()
 
 
+def test_a_plunge_kept_at_the_cutting_feed_rewrites_the_same_twice(bowl_index):
+    """Found by the property above: a plunge at the program's only feed keeps its F while
+    S rises; the second rewrite read its feed per revolution at the new S (k-limit not
+    scaled) and raised the spindle start, S5419 -> S5450."""
+    passes = "".join(f"{xyz}\n" for xyz in (
+        "X1.000 Y47.000 Z-24.792", "X2.000 Y47.000 Z-24.791", "X3.000 Y47.000 Z-24.788",
+        "X4.000 Y47.000 Z-24.785", "X5.000 Y47.000 Z-24.780", "X6.000 Y47.000 Z-24.774",
+        "X6.000 Y49.000 Z-24.655", "X5.000 Y49.000 Z-24.663", "X4.000 Y49.000 Z-24.669",
+        "X3.000 Y49.000 Z-24.674", "X2.000 Y49.000 Z-24.678", "X1.000 Y49.000 Z-24.680",
+        "X0.000 Y49.000 Z-24.681", "X0.000 Y51.000 Z-24.514", "X1.000 Y51.000 Z-24.513",
+        "X2.000 Y51.000 Z-24.510", "X3.000 Y51.000 Z-24.505", "X4.000 Y51.000 Z-24.498",
+        "X5.000 Y51.000 Z-24.489", "X6.000 Y51.000 Z-24.477", "X6.000 Y53.000 Z-24.214",
+        "X5.000 Y53.000 Z-24.230", "X4.000 Y53.000 Z-24.243", "X3.000 Y53.000 Z-24.253",
+        "X2.000 Y53.000 Z-24.261", "X1.000 Y53.000 Z-24.265", "X0.000 Y53.000 Z-24.266",
+    ))
+    text = ("(bowl wall finish, D16 ball)\nG21 G90 G17\nT1 M6\nS1393 M3\n"
+            "G0 X0.000 Y47.000 Z-19.792\nG1 Z-24.792 F279\n" + passes + "G0 Z-4.266\nM5\nM30\n")
+    job = Job(cutter=Cutter(2 * RADIUS, 2),
+              machine=Machine(accel_rad_s2=20.0, max_rpm=6000.0, min_rpm=0.0),
+              cutting=CuttingData(vc_m_min=40.0, fz_mm=0.0625),
+              options=PlanOptions(planner="lookahead", min_rpm_step=1.0), operations=("all",))
+    once = rewrite_text(text, job, "gen.nc", bowl_index).text
+    assert once != text
+    assert rewrite_text(once, job, "gen.nc", bowl_index).text == once
+
+
 def _inserted_line(base: str, longer: str) -> str:
     """The one whole line ``longer`` has in addition to ``base``."""
     a, b = base.splitlines(keepends=True), longer.splitlines(keepends=True)
