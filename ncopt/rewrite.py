@@ -35,11 +35,14 @@ class WordStyle:
 
     def format_all(self, values) -> list[str]:
         """Many numbers at once (a rewrite writes ~1M)."""
+        # str.format mapped over the list: the same strings as f-strings, without a
+        # Python-level loop (~2x faster at a million values)
         if self.decimals == 0:
-            dot = "." if self.trailing_point else ""
-            return [f"{v}{dot}" for v in np.round(np.asarray(values, float)).astype(np.int64).tolist()]
-        spec = f".{self.decimals}f"
-        return [format(v, spec) for v in np.asarray(values, float).tolist()]
+            template = "{}." if self.trailing_point else "{}"
+            ints = np.round(np.asarray(values, float)).astype(np.int64).tolist()
+            return list(map(template.format, ints))
+        template = "{:.%df}" % self.decimals
+        return list(map(template.format, np.asarray(values, float).tolist()))
 
     def quantize_down(self, value: float) -> float:
         """Largest representable value <= value (so fz never exceeds its target)."""
@@ -245,11 +248,13 @@ def _insertions(prog, appended: dict, style) -> Edits:
     lines = np.flatnonzero(mark)
     sep = style.separator
     if len(s_lines) == lines.size and len(f_lines) == lines.size:  # both on every line
-        texts = ([f"{sep}S{a}{sep}F{b}" for a, b in zip(s_text, f_text)] if style.s_before_f
-                 else [f"{sep}F{b}{sep}S{a}" for a, b in zip(s_text, f_text)])
+        brace = sep.replace("{", "{{").replace("}", "}}")  # a literal in the template
+        texts = (list(map((brace + "S{}" + brace + "F{}").format, s_text, f_text))
+                 if style.s_before_f else
+                 list(map((brace + "F{}" + brace + "S{}").format, f_text, s_text)))
     else:
-        s_part = [f"{sep}S{t}" for t in s_text]
-        f_part = [f"{sep}F{t}" for t in f_text]
+        s_part = list(map((sep + "S").__add__, s_text))
+        f_part = list(map((sep + "F").__add__, f_text))
         first, second = (s_lines, s_part), (f_lines, f_part)
         if not style.s_before_f:
             first, second = second, first
@@ -281,11 +286,10 @@ def apply_edits(text: str, edits) -> str:
         raise VerificationError(f"overlapping edits at offset {int(start[clash[0] + 1])}")
     keep_from = np.concatenate(([0], end)).tolist()
     keep_to = np.concatenate((start, [len(text)])).tolist()
-    new = edits.text
-    parts = [text[keep_from[0]:keep_to[0]]]
-    for i, k in enumerate(order.tolist()):
-        parts.append(new[k])
-        parts.append(text[keep_from[i + 1]:keep_to[i + 1]])
+    # kept text, edit, kept text, ..., edit, kept text: filled by slices, not appends
+    parts = [""] * (2 * len(order) + 1)
+    parts[0::2] = [text[a:b] for a, b in zip(keep_from, keep_to)]
+    parts[1::2] = list(map(edits.text.__getitem__, order.tolist()))
     out = "".join(parts)
     del parts, keep_from, keep_to
     release_freed_memory()  # the planning's and the edits' leftovers, before verification
