@@ -35,14 +35,11 @@ class WordStyle:
 
     def format_all(self, values) -> list[str]:
         """Many numbers at once (a rewrite writes ~1M)."""
-        # str.format mapped over the list: the same strings as f-strings, without a
-        # Python-level loop (~2x faster at a million values)
         if self.decimals == 0:
-            template = "{}." if self.trailing_point else "{}"
-            ints = np.round(np.asarray(values, float)).astype(np.int64).tolist()
-            return list(map(template.format, ints))
-        template = "{:.%df}" % self.decimals
-        return list(map(template.format, np.asarray(values, float).tolist()))
+            dot = "." if self.trailing_point else ""
+            return [f"{v}{dot}" for v in np.round(np.asarray(values, float)).astype(np.int64).tolist()]
+        spec = f".{self.decimals}f"
+        return [format(v, spec) for v in np.asarray(values, float).tolist()]
 
     def quantize_down(self, value: float) -> float:
         """Largest representable value <= value (so fz never exceeds its target)."""
@@ -248,13 +245,11 @@ def _insertions(prog, appended: dict, style) -> Edits:
     lines = np.flatnonzero(mark)
     sep = style.separator
     if len(s_lines) == lines.size and len(f_lines) == lines.size:  # both on every line
-        brace = sep.replace("{", "{{").replace("}", "}}")  # a literal in the template
-        texts = (list(map((brace + "S{}" + brace + "F{}").format, s_text, f_text))
-                 if style.s_before_f else
-                 list(map((brace + "F{}" + brace + "S{}").format, f_text, s_text)))
+        texts = ([f"{sep}S{a}{sep}F{b}" for a, b in zip(s_text, f_text)] if style.s_before_f
+                 else [f"{sep}F{b}{sep}S{a}" for a, b in zip(s_text, f_text)])
     else:
-        s_part = list(map((sep + "S").__add__, s_text))
-        f_part = list(map((sep + "F").__add__, f_text))
+        s_part = [f"{sep}S{t}" for t in s_text]
+        f_part = [f"{sep}F{t}" for t in f_text]
         first, second = (s_lines, s_part), (f_lines, f_part)
         if not style.s_before_f:
             first, second = second, first
