@@ -328,8 +328,11 @@ def _fast_path(raw, line_start, content_end, classes):
     n_lines = line_start.shape[0] - 1
     cls = classes[raw]
     line_of = np.repeat(np.arange(n_lines, dtype=np.int32), np.diff(line_start))
-    in_content = np.arange(raw.shape[0]) < np.repeat(content_end, np.diff(line_start))
-    cls = np.where(in_content, cls, _NL)
+    # the bytes after each line's content (its line end, a block end mark: a few at
+    # most) read as line ends
+    tail = line_start[1:] - content_end
+    for k in range(int(tail.max()) if n_lines else 0):
+        cls[content_end[tail > k] + k] = _NL
     bad = np.zeros(n_lines, dtype=bool)
     bad[line_of[cls == _OTHER]] = True
     idx = np.flatnonzero((cls != _SPACE) & (cls != _NL) & (cls != _OTHER))
@@ -354,14 +357,15 @@ def _fast_path(raw, line_start, content_end, classes):
     next_start[:-1] = run_start[1:] & same_prev[1:]
     bad[ln[is_letter & ~next_start]] = True  # letter without number
     bad[ln[cont & (cc == _SIGN)]] = True  # sign inside a number
-    run_id = np.cumsum(run_start) - 1
-    n_runs = int(run_start.sum())
+    # a run's characters are consecutive among the number characters, from its start
+    # to the next run's: counts per run are sums over those slices
     num_idx = np.flatnonzero(is_num)
-    rid = run_id[num_idx]
-    points = np.bincount(rid, weights=(cc[num_idx] == _POINT), minlength=n_runs)
-    digits = np.bincount(rid, weights=(cc[num_idx] == _DIGIT), minlength=n_runs)
-    length = np.bincount(rid, minlength=n_runs)
-    run_first = np.flatnonzero(run_start)
+    cc_num = cc[num_idx]
+    run_at = np.flatnonzero(run_start[num_idx])
+    length = np.diff(np.append(run_at, num_idx.size))
+    points = np.add.reduceat((cc_num == _POINT).view(np.int8), run_at, dtype=np.int64)
+    digits = np.add.reduceat((cc_num == _DIGIT).view(np.int8), run_at, dtype=np.int64)
+    run_first = num_idx[run_at]
     run_line = ln[run_first]
     bad_run = (points > 1) | (digits < 1) | (length > _MAX_NUMBER_CHARS)
     bad[run_line[bad_run]] = True

@@ -203,10 +203,11 @@ def _comment_lines(prog: Program) -> list[tuple[int, list[str]]]:
     if "(" not in text and ";" not in text:
         return []
     found: list[tuple[int, str]] = []
-    for m in _COMMENT_IN_TEXT.finditer(text):
-        body = m.group(1) if m.group(1) is not None else m.group(2)
-        if body and may_describe_a_tool(body) and not _NCOPT_STAMP.match(body):
-            found.append((m.start(), body))
+    for lo, hi in _comment_spans(prog):
+        for m in _COMMENT_IN_TEXT.finditer(text, lo, hi):
+            body = m.group(1) if m.group(1) is not None else m.group(2)
+            if body and may_describe_a_tool(body) and not _NCOPT_STAMP.match(body):
+                found.append((m.start(), body))
     if not found:
         return []
     lines = np.searchsorted(prog.line_start, [pos for pos, _ in found], side="right") - 1
@@ -220,6 +221,22 @@ def _comment_lines(prog: Program) -> list[tuple[int, list[str]]]:
         else:
             out.append((line, [body]))
     return out
+
+
+def _comment_spans(prog: Program) -> list[tuple[int, int]]:
+    """(start, end) offsets of the runs of consecutive lines holding a '(' or ';'.
+
+    No comment match crosses a line end, so the matches within these spans are the
+    matches in the whole text; a finishing program has comments on a few lines only,
+    and the regular expression then scans those, not every byte (1M lines: 0.15 s)."""
+    raw = np.frombuffer(prog.text.encode("latin-1"), dtype=np.uint8)
+    at = np.flatnonzero((raw == ord("(")) | (raw == ord(";")))
+    lines = np.unique(np.searchsorted(prog.line_start, at, side="right") - 1)
+    if lines.size == 0:
+        return []
+    first = lines[np.concatenate(([True], np.diff(lines) > 1))]
+    last = lines[np.concatenate((np.diff(lines) > 1, [True]))]
+    return list(zip(prog.line_start[first].tolist(), prog.line_start[last + 1].tolist()))
 
 
 def _descriptions(prog: Program, lines) -> list[_Described]:
