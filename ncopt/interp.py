@@ -482,7 +482,8 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
     xyz[rows[1:]] = end
     lengths = np.zeros(n_pts)
     lengths[rows[1:]] = seg_len
-    for j, piece in enumerate(pieces):
+    for j in arcs.tolist():  # only arcs have pieces (a loop over 1M moves otherwise)
+        piece = pieces[j]
         if piece is not None:
             xyz[rows[j] + 1:rows[j + 1] + 1] = piece[0]
             lengths[rows[j] + 1:rows[j + 1] + 1] = piece[1]

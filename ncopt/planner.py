@@ -391,10 +391,9 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
     # so are min() and max(): ``b if b > a else a`` is max(a, b) exactly (the first of
     # equals, NaN alike, the same type), ``b if b < a else a`` min(a, b), at a third of
     # the cost of the builtin call.
-    for b in range(n):
-        target = s_plan[b]
+    for b, target, fixed_b in zip(range(n), s_plan, fixed):
         before = cur
-        if fixed[b]:
+        if fixed_b:
             cur = float(fixed_rpm[b])
             if not cur > 0:  # the program runs this block with no S in force
                 real = None
