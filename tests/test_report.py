@@ -183,6 +183,20 @@ def test_batch_writes_an_index_linking_each_files_page(make_bowl, bowl_stl, tmp_
     assert "<td>flat.nc</td><td>unchanged</td>" in html  # nothing planned: no page, a row
 
 
+def test_a_batch_report_may_go_into_the_output_folder_the_batch_creates(make_bowl, tmp_path):
+    src, out = tmp_path / "in", tmp_path / "out"
+    src.mkdir()
+    (src / "a.nc").write_text(passes_program(make_bowl))
+    result = invoke(["batch", src, "-o", out, *SPINDLE, "--report", out / "index.html",
+                     "--jobs", "1", "-q"])
+    assert result.exit_code == Exit.OK, result.stderr
+    assert (out / "a.nc").exists() and "a.nc" in (out / "index.html").read_text(encoding="utf-8")
+    # any other missing folder is still refused before the work
+    result = invoke(["batch", src, "-o", tmp_path / "o2", *SPINDLE,
+                     "--report", tmp_path / "nope" / "index.html"])
+    assert result.exit_code == Exit.IO and not (tmp_path / "o2").exists()
+
+
 def test_a_json_batch_report_stays_json(make_bowl, tmp_path):
     src = tmp_path / "in"
     src.mkdir()
