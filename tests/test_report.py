@@ -229,3 +229,11 @@ def test_a_machine_profile_sets_where_s_changes(make_bowl, bowl_stl, tmp_path):
     line = next(x for x in result.stderr.splitlines() if "S changes" in x)
     assert line.startswith("ncopt: S changes between passes only (given): one S for each of "
                            "3 passes; with S changing anywhere along the cut: ")
+
+
+def test_a_constant_colour_gets_a_plain_scale():
+    """One S for a whole pass: the colour bar spans 2 % around it, not +-0.4 RPM."""
+    lo, hi = report._colour_range(np.array([1688.0, np.nan, 1688.0]))
+    assert hi - lo == pytest.approx(0.02 * 1688.0) and lo < 1688.0 < hi
+    assert report._colour_range(np.array([1000.0, 15000.0])) == (1000.0, 15000.0)
+    assert report._colour_range(np.array([np.nan])) == (0.0, 1.0)
