@@ -378,14 +378,19 @@ def rewrite(
         print_summary(result.summary, err)
 
 
-def _check_report(report: Optional[Path], json_ok: bool = False) -> None:
-    """Refuse a report that cannot be written before the (long) work, not after it."""
+def _check_report(report: Optional[Path], json_ok: bool = False,
+                  made_folder: Optional[Path] = None) -> None:
+    """Refuse a report that cannot be written before the (long) work, not after it
+    (``made_folder``: the output folder the command creates, a report may go there)."""
     if report is None:
         return
     if not (json_ok and report.suffix.lower() == ".json"):
         from .report import require_libraries
         require_libraries()
-    if not report.resolve().parent.is_dir():
+    parent = report.resolve().parent
+    if made_folder is not None and parent == made_folder.resolve():
+        return
+    if not parent.is_dir():
         raise FileError("the folder to write into does not exist; create it first", str(report))
 
 
@@ -498,7 +503,7 @@ def batch(
     from .fileio import write_output
 
     job = make_job(**_job_options(locals()))
-    _check_report(report, json_ok=True)
+    _check_report(report, json_ok=True, made_folder=output)
     base, files = find_programs(inputs)
     targets = plan_targets(files, base, output, in_place, folder_given=Path(inputs).is_dir())
     html = report is not None and report.suffix.lower() != ".json"

@@ -140,6 +140,28 @@ def path_contacts_at_samples(tp: Toolpath, cutter: Cutter, selected: np.ndarray,
     return Contacts(cc_mm=cc, normal=normal, r_eff_mm=r, cutting=at_points.cutting[point])
 
 
+def path_contacts_by_group(tp: Toolpath, cutter: Cutter, selected: np.ndarray,
+                          sample_mm: float, group: np.ndarray) -> Contacts:
+    """:func:`path_contacts_at_samples` with each group of points (``group``: (n,) int
+    per toolpath point, e.g. its operation) estimated from its own moves only: a
+    roughing level beside a finishing pass is not the surface that pass finishes."""
+    ids = np.unique(group[selected]) if selected.any() else np.zeros(0, np.int64)
+    if ids.size <= 1:
+        return path_contacts_at_samples(tp, cutter, selected, sample_mm)
+    point, _ = sample_fractions(tp, sample_mm)
+    at = group[point]
+    out = None
+    for g in ids.tolist():
+        c = path_contacts_at_samples(tp, cutter, selected & (group == g), sample_mm)
+        if out is None:
+            out = c
+            continue
+        take = at == g
+        for name in ("cc_mm", "normal", "r_eff_mm", "cutting"):
+            getattr(out, name)[take] = getattr(c, name)[take]
+    return out
+
+
 def mesh_contacts_at_samples(tp: Toolpath, cutter: Cutter, mesh_index: MeshIndex,
                              sample_mm: float, tol_mm: float) -> Contacts:
     """Contacts from the mesh on every sample of :func:`sample_points` (the simulator's

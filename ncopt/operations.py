@@ -42,6 +42,7 @@ FINISH_3D, FINISH_ZLEVEL = "3D surface finishing", "Z-level finishing"
 ROUGH_LEVELS, CLEARING, TWO_D = "roughing levels", "area clearing", "2D contour"
 ISOLATED, CANNED, NO_CUT, FLAT_TOOL = "isolated passes", "canned cycles", "no cut", "tool"
 STAMPED, LEFT_BEFORE = "planned before (ncopt stamp)", "left before (ncopt stamp)"
+UNPLACED = "moves ncopt cannot place"  # feed moves whose position or tool axis is unknown
 PLANNED_KINDS = (FINISH_3D, FINISH_ZLEVEL)
 
 SLOPE = 0.03  # |dz|/ds above which a move is sloped (1.7 deg)

@@ -626,6 +626,10 @@ def decide(ops: list, choices: dict, job, tp: Toolpath, plannable: np.ndarray) -
     wanted = _wanted(job.operations)
     out = []
     for op in ops:
+        if op.kind == NO_CUT and not op.planned:  # feed moves it cannot place: say why
+            located = unplannable_why(tp, op)
+            if located != op.reason:
+                op = replace(op, kind=operations.UNPLACED, reason=located)
         planned, why = op.planned, op.reason
         choice = choices.get(op.tool)
         base_name = op.name.split(" (part ")[0]

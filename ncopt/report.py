@@ -420,6 +420,21 @@ _COLOURS = ("#ff7f0e", "#1f77b4", "#2ca02c", "#9467bd", "#8c564b")
 _CONFIG = {"displaylogo": False, "responsive": True}
 
 
+def _colour_range(values: np.ndarray) -> tuple[float, float]:
+    """The colour scale's ends: the values' range, widened to at least 2 % of their size so
+    a constant S (one S per pass) reads as one colour on a plain scale, not as
+    1687.6-1688.4 RPM."""
+    finite = values[np.isfinite(values)]
+    if finite.size == 0:
+        return 0.0, 1.0
+    lo, hi = float(finite.min()), float(finite.max())
+    least = 0.02 * max(abs(lo), abs(hi), 1e-9)
+    if hi - lo < least:
+        mid = 0.5 * (lo + hi)
+        lo, hi = mid - 0.5 * least, mid + 0.5 * least
+    return lo, hi
+
+
 def _path_json(series: SimSeries, max_points: int) -> str:
     """The cutting samples in 3D, evenly thinned, broken where the cut is interrupted;
     a menu recolours them by S, F, D_eff or vc."""
@@ -438,12 +453,16 @@ def _path_json(series: SimSeries, max_points: int) -> str:
     xyz = [gapped(series.xyz_mm[:, j]) for j in range(3)]
     colours = {key: gapped(getattr(series, key)) for key, _ in COLOR_BY}
     first, label = COLOR_BY[0]
+    lo, hi = _colour_range(colours[first])
     trace = {"type": "scatter3d", "mode": "lines", "x": _array(xyz[0]), "y": _array(xyz[1]),
              "z": _array(xyz[2]), "connectgaps": False, "hoverinfo": "x+y+z",
              "line": {"width": 4, "color": _array(colours[first]), "colorscale": "Viridis",
+                      "cmin": lo, "cmax": hi,
                       "showscale": True, "colorbar": {"title": {"text": label}}}}
     buttons = [{"label": lab, "method": "restyle",
                 "args": [{"line.color": [_array(colours[key])],
+                          "line.cmin": [_colour_range(colours[key])[0]],
+                          "line.cmax": [_colour_range(colours[key])[1]],
                           "line.colorbar.title.text": lab}]} for key, lab in COLOR_BY]
     span = np.nanmax(np.vstack(xyz), axis=1) - np.nanmin(np.vstack(xyz), axis=1)
     span = np.maximum(np.nan_to_num(span, nan=1.0), 1e-3)

@@ -52,8 +52,8 @@ from pathlib import Path
 import numpy as np
 
 from .api import Job, nominal_cutting_data, read_text
-from .stamp import read_stamps
-from .contacts import (MAX_SAMPLES_PER_MOVE, centre_offsets, path_contacts_at_samples,
+from .stamp import read_stamps, stamped_line
+from .contacts import (MAX_SAMPLES_PER_MOVE, centre_offsets, path_contacts_by_group,
                        sample_axes, sample_points)
 from .errors import UsageError
 from .geometry import MeshIndex, contacts_from_mesh, load_stl
@@ -280,7 +280,8 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
     else:
         cut = job.cutting or nominal_cutting_data(tp, planned, job.cutter, path)
     if mesh_index is None and contacts is None:  # contacts from the toolpath's own shape
-        contacts = path_contacts_at_samples(tp, job.cutter, planned, sample_mm)
+        contacts = path_contacts_by_group(tp, job.cutter, planned, sample_mm,
+                                          _normal_groups(prog, tp))
     runs = _spindle_runs(moves, job.machine.accel_rpm_s)
     series, weight, mv = _sample(tp, moves, runs, job, sample_mm, mesh_index, contacts, path)
     s_words = int(np.count_nonzero(prog.word_letter == ord("S")))
@@ -350,6 +351,25 @@ def _spindle_starts(prog: Program, tp: Toolpath) -> np.ndarray:
 
 def _starts(x: np.ndarray) -> np.ndarray:
     return np.concatenate(([0.0], np.cumsum(x)[:-1])) if x.size else x.copy()
+
+
+def _normal_groups(prog: Program, tp: Toolpath) -> np.ndarray:
+    """(n,) int per toolpath point: whose moves its normal is estimated from without a
+    mesh, as the planner does: each operation of the program on its own, and the
+    operations an ncopt stamp says were planned together (one group per tool)."""
+    from .operations import spans  # scipy: only when a simulation needs it
+
+    line_group = np.zeros(prog.n_lines + 1, dtype=np.int64)
+    for k, sp in enumerate(spans(prog, tp)):
+        line_group[sp.first_line:sp.last_line + 1] = k + 1
+    stamps = read_stamps(prog)
+    for st in stamps.values():
+        if st.lines is None:  # an ncopt 0.1 stamp: every operation of its tool
+            line_group[np.flatnonzero(tp.lines.tool == st.tool)] = -1 - st.tool
+            continue
+        first, last = (stamped_line(stamps, n) for n in st.lines)
+        line_group[first:last + 1] = -1 - st.tool
+    return line_group[np.clip(tp.line, 0, prog.n_lines)]
 
 
 def _stamp_of(prog: Program, tool: int):

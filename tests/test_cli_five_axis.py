@@ -58,10 +58,9 @@ def test_a_rotary_program_without_kinematics_plans_nothing_and_says_why(tmp_path
     assert result.exit_code == Exit.PLANNING
     assert not out.exists()
     assert result.stderr.strip() == (
-        f"{prog}: nothing to plan (no feed moves with a running spindle and a known position; "
-        f"the first moves left alone: {prog}:4-7: not planned (the rotary axes (A, C) tilt "
-        "the tool and no kinematics is given; pass --kinematics xyzac-trt, xyzac-head-table "
-        "or xyzac-trt-linuxcnc as the machine is built); S/F left as programmed)")
+        f"{prog}: nothing to plan: the program (lines 1-7): line 4-7: the rotary axes (A, C) "
+        "tilt the tool and no kinematics is given; pass --kinematics xyzac-trt, "
+        "xyzac-head-table or xyzac-trt-linuxcnc as the machine is built")
 
 
 def test_the_machine_profile_gives_the_kinematics(tmp_path: Path):

@@ -183,6 +183,20 @@ def test_batch_writes_an_index_linking_each_files_page(make_bowl, bowl_stl, tmp_
     assert "<td>flat.nc</td><td>unchanged</td>" in html  # nothing planned: no page, a row
 
 
+def test_a_batch_report_may_go_into_the_output_folder_the_batch_creates(make_bowl, tmp_path):
+    src, out = tmp_path / "in", tmp_path / "out"
+    src.mkdir()
+    (src / "a.nc").write_text(passes_program(make_bowl))
+    result = invoke(["batch", src, "-o", out, *SPINDLE, "--report", out / "index.html",
+                     "--jobs", "1", "-q"])
+    assert result.exit_code == Exit.OK, result.stderr
+    assert (out / "a.nc").exists() and "a.nc" in (out / "index.html").read_text(encoding="utf-8")
+    # any other missing folder is still refused before the work
+    result = invoke(["batch", src, "-o", tmp_path / "o2", *SPINDLE,
+                     "--report", tmp_path / "nope" / "index.html"])
+    assert result.exit_code == Exit.IO and not (tmp_path / "o2").exists()
+
+
 def test_a_json_batch_report_stays_json(make_bowl, tmp_path):
     src = tmp_path / "in"
     src.mkdir()
@@ -215,3 +229,11 @@ def test_a_machine_profile_sets_where_s_changes(make_bowl, bowl_stl, tmp_path):
     line = next(x for x in result.stderr.splitlines() if "S changes" in x)
     assert line.startswith("ncopt: S changes between passes only (given): one S for each of "
                            "3 passes; with S changing anywhere along the cut: ")
+
+
+def test_a_constant_colour_gets_a_plain_scale():
+    """One S for a whole pass: the colour bar spans 2 % around it, not +-0.4 RPM."""
+    lo, hi = report._colour_range(np.array([1688.0, np.nan, 1688.0]))
+    assert hi - lo == pytest.approx(0.02 * 1688.0) and lo < 1688.0 < hi
+    assert report._colour_range(np.array([1000.0, 15000.0])) == (1000.0, 15000.0)
+    assert report._colour_range(np.array([np.nan])) == (0.0, 1.0)

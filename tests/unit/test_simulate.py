@@ -355,3 +355,38 @@ def test_a_rewrite_checks_its_own_spindle_and_finds_the_bowl_clean(bowl):
     original, _, _, _ = bowl
     result = rewrite_text(original, Job(cutter=BALL16, machine=Machine(227, 15000)), "bowl.mpf")
     assert not [w for w in result.summary.warnings if "cannot follow" in w]
+
+
+def _raster(name: str, z_of_x, y0: float, z_up: float) -> str:
+    """An operation ``(name)``: passes along X, 0.4 mm apart from ``y0``, z = z_of_x(x)."""
+    out = ["", f"({name})", f"G0 X0 Y{y0:.3f}", f"G0 Z{z_up:.3f}"]  # as Fusion writes it
+    for k in range(12):
+        y = y0 + 0.4 * k
+        xs = np.arange(0.0, 20.01, 0.5)[:: 1 if k % 2 == 0 else -1]
+        out += [f"G1 X{x:.3f} Y{y:.3f} Z{z_of_x(x):.3f} F800" for x in xs]
+    out.append(f"G0 Z{z_up:.3f}")
+    return "\n".join(out) + "\n"
+
+
+def test_mesh_free_simulation_estimates_each_operation_from_its_own_moves():
+    """Without a mesh the normals come from the toolpath; a roughing level 1 mm above a
+    finishing pass (BowlTest's pocket beside its scallop: vc +108 % where there was
+    none) is not the surface the finish cuts: the finish's D_eff is the same with it."""
+    slope = math.tan(math.radians(20.0))
+    finish = _raster("Scallop1", lambda x: slope * x, 0.0, 30.0)
+    rough = _raster("Pocket1", lambda x: slope * x + 1.0, 0.2, 30.0)
+    head = "G21 G90 G17\nT1 M6\nS3000 M3\n"
+    _, s_alone = simulate_program(head + finish + "M30\n", JOB)
+    _, s_both = simulate_program(head + rough + finish + "M30\n", JOB)
+    first = head.count("\n") + 6  # 1-based: the finish's second cutting block
+    last = head.count("\n") + finish.count("\n") - 1  # its last cutting block
+    shift = rough.count("\n")
+    mine_a = (s_alone.line >= first) & (s_alone.line <= last)
+    mine_b = (s_both.line >= first + shift) & (s_both.line <= last + shift)
+    a, b = s_alone.d_eff_mm[mine_a], s_both.d_eff_mm[mine_b]
+    assert a.shape == b.shape
+    np.testing.assert_allclose(b, a, rtol=1e-9, equal_nan=True)
+    # 20 deg: R_eff = 8 sin 20 = 2.74 mm on the finish's inner passes, D_eff 5.47 mm
+    inner = mine_a & np.isfinite(s_alone.vc_m_min) & s_alone.cutting
+    assert np.median(s_alone.d_eff_mm[inner]) == pytest.approx(2 * R * math.sin(math.radians(20)),
+                                                               rel=0.02)
