@@ -337,12 +337,12 @@ def _fast_path(raw, line_start, content_end, classes):
     bad[line_of[cls == _OTHER]] = True
     idx = np.flatnonzero((cls != _SPACE) & (cls != _NL) & (cls != _OTHER))
     cc, ln = cls[idx], line_of[idx]
-    has_tok = np.zeros(n_lines, dtype=bool)
-    has_tok[ln] = True
     is_letter = cc == _LETTER
     is_num = ~is_letter
     same_prev = np.zeros(idx.shape[0], dtype=bool)
     same_prev[1:] = ln[1:] == ln[:-1]
+    has_tok = np.zeros(n_lines, dtype=bool)
+    has_tok[ln[~same_prev]] = True  # the first token of each line that has one
     prev_num = np.zeros_like(same_prev)
     prev_num[1:] = is_num[:-1]
     run_start = is_num & ~(same_prev & prev_num)

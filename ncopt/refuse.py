@@ -284,6 +284,8 @@ def check_arc_centres(prog: Program, lines, arc: np.ndarray, *, plane: np.ndarra
     on G17 arcs, which no control minds) and a zero radius: ``R0``, or
     incremental offsets of zero (the centre on the start point).
     """
+    if not arc.any():  # every check below is of an arc (a finishing program may have none)
+        return
     tol = np.where(inch, MIN_ARC_RADIUS_MM / MM_PER_INCH, MIN_ARC_RADIUS_MM)
     tol = tol * (1.0 - 1e-9)  # a radius of exactly the limit passes
     has_ijk = lines.present("I") | lines.present("J") | lines.present("K")
