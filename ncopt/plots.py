@@ -38,7 +38,8 @@ def _pyplot():
         import matplotlib
     except ImportError:  # pragma: no cover - depends on the install
         from .errors import UsageError
-        raise UsageError("plots need matplotlib: pip install 'ncopt[plot]'") from None
+        raise UsageError("plots need matplotlib: python -m pip install matplotlib (or, in "
+                         "ncopt's source folder, python -m pip install \".[plot]\")") from None
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     return plt

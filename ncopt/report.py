@@ -520,8 +520,9 @@ def require_libraries() -> None:
 
     missing = [m for m in ("plotly", "matplotlib") if importlib.util.find_spec(m) is None]
     if missing:
-        raise UsageError(f"the HTML report needs {' and '.join(missing)}: "
-                         "pip install 'ncopt[plot]'")
+        raise UsageError(f"the HTML report needs {' and '.join(missing)}: python -m pip install "
+                         f"{' '.join(missing)} (or, in ncopt's source folder, python -m pip "
+                         "install \".[plot]\")")
 
 
 def page_path(index: Path, base: Path, program: Path) -> str:
