@@ -203,6 +203,11 @@ def _worker_init() -> None:
     # parent removes those once the pool is gone, and so does any later run in the folder.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    if hasattr(signal, "SIGPIPE"):
+        # a worker's pipes lead to its parent: a killed parent leaves them without a
+        # reader, and the result being sent then ends the worker (its default), where
+        # Python's BrokenPipeError would print multiprocessing's traceback
+        signal.signal(signal.SIGPIPE, signal.SIG_DFL)
     parent = mp.parent_process()
     if parent is not None:  # a killed parent: end the same way, with no traceback
         threading.Thread(target=_stop_with, args=(parent,), daemon=True).start()

@@ -332,7 +332,17 @@ def _alive(pid: int) -> bool:
         return False
     except PermissionError:  # another user's process
         return True
-    return True
+    return not _zombie(pid)
+
+
+def _zombie(pid: int) -> bool:
+    """The process has ended and waits to be reaped (a worker of a killed batch, until
+    init reaps it; some containers' first process never does): its temporary is stale."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as fh:
+            return fh.read().rsplit(b")", 1)[1].split()[0] == b"Z"
+    except (OSError, IndexError):
+        return False  # no /proc (not Linux): alive as kill(pid, 0) says
 
 
 def _age_s(path) -> float:

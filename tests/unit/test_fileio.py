@@ -361,3 +361,32 @@ def test_in_place_keeps_the_owner_where_it_may(tmp_path):
     os.chown(out, 1234, 5678)
     write_output(out, b"new\n")  # a replaced output keeps its owner too
     assert (out.stat().st_uid, out.stat().st_gid) == (1234, 5678)
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux's /proc")
+def test_a_temporary_of_an_ended_unreaped_process_is_stale(tmp_path):
+    """A batch worker killed with its parent stays a zombie until init reaps it (in some
+    containers never): its temporary must still count as stale."""
+    import subprocess
+    import sys
+    import time
+
+    from ncopt import fileio
+
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < 10:  # ended, not yet waited for: a zombie
+        state = Path(f"/proc/{child.pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        if state == "Z":
+            break
+        time.sleep(0.01)
+    try:
+        assert state == "Z"
+        tmp = tmp_path / f".p.nc.{child.pid}-abcd1234{fileio.TMP_SUFFIX}"
+        tmp.write_bytes(b"partial")
+        live = tmp_path / f".q.nc.{os.getpid()}-abcd1234{fileio.TMP_SUFFIX}"
+        live.write_bytes(b"being written")
+        assert fileio.clean_stale_temporaries(tmp_path) == 1
+        assert not tmp.exists() and live.exists()
+    finally:
+        child.wait()
