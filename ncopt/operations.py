@@ -359,38 +359,6 @@ def _levels(sm: _Samples, cell_mm: float) -> _Levels:
     nxt[:-1] = np.where(p_cell[1:] == p_cell[:-1], (p_z[1:] - p_z[:-1]) * 0.002, np.inf)
     step[flat] = nxt[inv.ravel()]
     return _Levels(interior, step)
-    z = np.round(sm.xyz[flat, 2] / 0.002).astype(np.int64)
-    cx = np.floor(sm.xyz[flat, 0] / cell_mm).astype(np.int64)
-    cy = np.floor(sm.xyz[flat, 1] / cell_mm).astype(np.int64)
-    cx -= cx.min() - 1
-    cy -= cy.min() - 1
-    zl = z - z.min()
-    w = int(cy.max()) + 2
-    h = int(cx.max()) + 2
-    cell = cx * w + cy
-    key = zl * (h * w) + cell
-    uniq = np.unique(key)
-    near = [uniq + dk for dk in (w, -w, 1, -1)]
-    inner = np.logical_and.reduce([np.isin(k, uniq) for k in near])
-    interior[flat] = inner[np.searchsorted(uniq, key)]
-    # next level up over the same cell: sort by cell, then level
-    order = np.lexsort((zl, cell))
-    c_sorted, z_sorted = cell[order], zl[order]
-    nxt = np.full(order.size, np.inf)
-    same = c_sorted[1:] == c_sorted[:-1]
-    rise = (z_sorted[1:] - z_sorted[:-1]).astype(np.float64) * 0.002
-    cand = np.where(same & (rise > 0), rise, np.inf)
-    # the first strictly higher level: propagate over equal levels from the end
-    nxt[:-1] = cand
-    for _ in range(64):  # equal-level runs are short; stop when settled
-        fill = ~np.isfinite(nxt[:-1]) & same & (rise == 0) & np.isfinite(nxt[1:])
-        if not fill.any():
-            break
-        nxt[:-1][fill] = nxt[1:][fill]
-    back = np.empty(order.size)
-    back[order] = nxt
-    step[flat] = back
-    return _Levels(interior, step)
 
 
 # ------------------------------------------------------------- classification ----
