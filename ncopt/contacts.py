@@ -125,41 +125,37 @@ def centre_offsets(tp: Toolpath, cutter: Cutter, axis: np.ndarray | None) -> np.
 
 
 def path_contacts_at_samples(tp: Toolpath, cutter: Cutter, selected: np.ndarray,
-                             sample_mm: float) -> Contacts:
+                             sample_mm: float, group: np.ndarray | None = None) -> Contacts:
     """Mesh-free contacts on the samples of :func:`sample_points`: the per-point
-    estimate, R_eff interpolated along each move (as the planner assumes)."""
-    at_points = contacts_for(tp, cutter, selected, None, sample_mm, 0.0).contacts
+    estimate, R_eff interpolated along each move (as the planner assumes).
+
+    ``group``: (n,) int per toolpath point (e.g. its operation): each group's normals
+    are estimated from its own moves only, and its samples take them (a roughing
+    level beside a finishing pass is not the surface that pass finishes); samples of
+    no selected group take the first one's."""
     point, frac = sample_fractions(tp, sample_mm)
     prev = np.maximum(point - 1, 0)
-    r = at_points.r_eff_mm[prev] * (1.0 - frac) + at_points.r_eff_mm[point] * frac
-    normal = at_points.normal[prev] * (1.0 - frac)[:, None] + at_points.normal[point] * frac[:, None]
+    ids = np.unique(group[selected]) if group is not None and selected.any() else ()
+    if len(ids) <= 1:
+        parts = [(selected, slice(None))]
+    else:
+        at = group[point]
+        parts = [(selected & (group == g), (at == g) | (~np.isin(at, ids) if k == 0 else False))
+                 for k, g in enumerate(ids.tolist())]
+    r = np.empty(point.shape)
+    normal = np.empty((point.size, 3))
+    cutting = np.empty(point.shape, dtype=bool)
+    for sel, rows in parts:
+        at_points = contacts_for(tp, cutter, sel, None, sample_mm, 0.0).contacts
+        p, q, f = point[rows], prev[rows], frac[rows]
+        r[rows] = at_points.r_eff_mm[q] * (1.0 - f) + at_points.r_eff_mm[p] * f
+        normal[rows] = at_points.normal[q] * (1.0 - f)[:, None] + at_points.normal[p] * f[:, None]
+        cutting[rows] = at_points.cutting[p]
     normal /= np.maximum(np.linalg.norm(normal, axis=1), 1e-12)[:, None]
     xyz, _ = sample_points(tp, sample_mm)
     cc = xyz + centre_offsets(tp, cutter, sample_axes(tp, sample_mm)) \
         - cutter.corner_radius_mm * normal
-    return Contacts(cc_mm=cc, normal=normal, r_eff_mm=r, cutting=at_points.cutting[point])
-
-
-def path_contacts_by_group(tp: Toolpath, cutter: Cutter, selected: np.ndarray,
-                          sample_mm: float, group: np.ndarray) -> Contacts:
-    """:func:`path_contacts_at_samples` with each group of points (``group``: (n,) int
-    per toolpath point, e.g. its operation) estimated from its own moves only: a
-    roughing level beside a finishing pass is not the surface that pass finishes."""
-    ids = np.unique(group[selected]) if selected.any() else np.zeros(0, np.int64)
-    if ids.size <= 1:
-        return path_contacts_at_samples(tp, cutter, selected, sample_mm)
-    point, _ = sample_fractions(tp, sample_mm)
-    at = group[point]
-    out = None
-    for g in ids.tolist():
-        c = path_contacts_at_samples(tp, cutter, selected & (group == g), sample_mm)
-        if out is None:
-            out = c
-            continue
-        take = at == g
-        for name in ("cc_mm", "normal", "r_eff_mm", "cutting"):
-            getattr(out, name)[take] = getattr(c, name)[take]
-    return out
+    return Contacts(cc_mm=cc, normal=normal, r_eff_mm=r, cutting=cutting)
 
 
 def mesh_contacts_at_samples(tp: Toolpath, cutter: Cutter, mesh_index: MeshIndex,

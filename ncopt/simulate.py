@@ -53,7 +53,7 @@ import numpy as np
 
 from .api import Job, nominal_cutting_data, read_text
 from .stamp import read_stamps, stamped_line
-from .contacts import (MAX_SAMPLES_PER_MOVE, centre_offsets, path_contacts_by_group,
+from .contacts import (MAX_SAMPLES_PER_MOVE, centre_offsets, path_contacts_at_samples,
                        sample_axes, sample_points)
 from .errors import UsageError
 from .geometry import MeshIndex, contacts_from_mesh, load_stl
@@ -280,8 +280,8 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
     else:
         cut = job.cutting or nominal_cutting_data(tp, planned, job.cutter, path)
     if mesh_index is None and contacts is None:  # contacts from the toolpath's own shape
-        contacts = path_contacts_by_group(tp, job.cutter, planned, sample_mm,
-                                          _normal_groups(prog, tp))
+        contacts = path_contacts_at_samples(tp, job.cutter, planned, sample_mm,
+                                            _normal_groups(prog, tp))
     runs = _spindle_runs(moves, job.machine.accel_rpm_s)
     series, weight, mv = _sample(tp, moves, runs, job, sample_mm, mesh_index, contacts, path)
     s_words = int(np.count_nonzero(prog.word_letter == ord("S")))
