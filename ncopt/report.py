@@ -459,10 +459,10 @@ def _path_json(series: SimSeries, max_points: int) -> str:
              "line": {"width": 4, "color": _array(colours[first]), "colorscale": "Viridis",
                       "cmin": lo, "cmax": hi,
                       "showscale": True, "colorbar": {"title": {"text": label}}}}
+    ranges = {key: _colour_range(colours[key]) for key, _ in COLOR_BY}
     buttons = [{"label": lab, "method": "restyle",
                 "args": [{"line.color": [_array(colours[key])],
-                          "line.cmin": [_colour_range(colours[key])[0]],
-                          "line.cmax": [_colour_range(colours[key])[1]],
+                          "line.cmin": [ranges[key][0]], "line.cmax": [ranges[key][1]],
                           "line.colorbar.title.text": lab}]} for key, lab in COLOR_BY]
     span = np.nanmax(np.vstack(xyz), axis=1) - np.nanmin(np.vstack(xyz), axis=1)
     span = np.maximum(np.nan_to_num(span, nan=1.0), 1e-3)
