@@ -453,13 +453,13 @@ def _path_json(series: SimSeries, max_points: int) -> str:
     xyz = [gapped(series.xyz_mm[:, j]) for j in range(3)]
     colours = {key: gapped(getattr(series, key)) for key, _ in COLOR_BY}
     first, label = COLOR_BY[0]
-    lo, hi = _colour_range(colours[first])
+    ranges = {key: _colour_range(colours[key]) for key, _ in COLOR_BY}
+    lo, hi = ranges[first]
     trace = {"type": "scatter3d", "mode": "lines", "x": _array(xyz[0]), "y": _array(xyz[1]),
              "z": _array(xyz[2]), "connectgaps": False, "hoverinfo": "x+y+z",
              "line": {"width": 4, "color": _array(colours[first]), "colorscale": "Viridis",
                       "cmin": lo, "cmax": hi,
                       "showscale": True, "colorbar": {"title": {"text": label}}}}
-    ranges = {key: _colour_range(colours[key]) for key, _ in COLOR_BY}
     buttons = [{"label": lab, "method": "restyle",
                 "args": [{"line.color": [_array(colours[key])],
                           "line.cmin": [ranges[key][0]], "line.cmax": [ranges[key][1]],
