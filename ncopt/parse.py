@@ -363,8 +363,11 @@ def _fast_path(raw, line_start, content_end, classes):
     cc_num = cc[num_idx]
     run_at = np.flatnonzero(run_start[num_idx])
     length = np.diff(np.append(run_at, num_idx.size))
-    points = np.add.reduceat((cc_num == _POINT).view(np.int8), run_at, dtype=np.int64)
-    digits = np.add.reduceat((cc_num == _DIGIT).view(np.int8), run_at, dtype=np.int64)
+    run_last = run_at + length - 1
+    is_point, is_digit = cc_num == _POINT, cc_num == _DIGIT
+    points = _run_sums(np.cumsum(is_point, dtype=np.int32), is_point, run_at, run_last)
+    digits_upto = np.cumsum(is_digit, dtype=np.int32)
+    digits = _run_sums(digits_upto, is_digit, run_at, run_last)
     run_first = num_idx[run_at]
     run_line = ln[run_first]
     bad_run = (points > 1) | (digits < 1) | (length > _MAX_NUMBER_CHARS)
@@ -376,10 +379,50 @@ def _fast_path(raw, line_start, content_end, classes):
     num_len = length[keep]
     letter_pos = idx[run_first - 1][keep].astype(np.int64)
     letter = raw[letter_pos] & 0xDF  # upper case ASCII
-    values = _parse_numbers(raw, num_start, num_len)
+    values = _number_values(raw[idx[num_idx]], is_point, is_digit, digits_upto, run_at,
+                            run_last, digits)[keep]
+    long = np.flatnonzero(digits[keep] > _EXACT_DIGITS)
+    if long.size:
+        values[long] = _parse_numbers(raw, num_start[long], num_len[long])
     words = (run_line[keep].astype(np.int32), letter.astype(np.uint8), values,
              letter_pos, num_start + num_len, num_start)
     return fast, blank, words
+
+
+def _run_sums(upto, values, run_at, run_last):
+    """Sum of ``values`` over each run, from their running sum ``upto`` (which may wrap
+    around: the difference of two int64 sums is exact while the run's own sum fits)."""
+    return upto[run_last] - upto[run_at] + values[run_at]
+
+
+# Up to 15 digits the digits read as an integer are exact in a float64 (< 2**53), and
+# so is 10**k for every k <= 15: their quotient, one IEEE division, is the correctly
+# rounded value of the text, which is what float() gives (Clinger's fast path).
+_EXACT_DIGITS = 15
+_POW10_INT = 10 ** np.arange(_EXACT_DIGITS + 1, dtype=np.int64)
+_POW10 = 10.0 ** np.arange(_MAX_NUMBER_CHARS + 1)
+
+
+def _number_values(chars, is_point, is_digit, digits_upto, run_at, run_last, digits):
+    """Float values of the number runs (``[sign] digits [. digits]``, consecutive in
+    ``chars`` from ``run_at`` to ``run_last``), exact for runs of up to 15 digits (the
+    caller reads longer ones otherwise).  ``digits_upto``: running count of digits."""
+    if run_at.size == 0:
+        return np.zeros(0, dtype=np.float64)
+    # per character: the digits after it in its run (a digit's power of ten; at the
+    # point, the number of decimals)
+    after = np.repeat(digits_upto[run_last], run_last + 1 - run_at)
+    after -= digits_upto
+    np.minimum(after, _EXACT_DIGITS, out=after)
+    term = _POW10_INT[after]
+    term *= (chars - ord("0")) * is_digit  # 0 at the sign and the point
+    mantissa = _run_sums(np.cumsum(term), term, run_at, run_last)
+    decimals = np.zeros(run_at.size, dtype=np.int64)
+    at = np.flatnonzero(is_point)
+    decimals[np.searchsorted(run_at, at, side="right") - 1] = after[at]
+    values = mantissa / _POW10[decimals]
+    np.negative(values, out=values, where=chars[run_at] == ord("-"))
+    return values
 
 
 def _parse_numbers(raw, start, length) -> np.ndarray:

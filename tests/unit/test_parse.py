@@ -356,6 +356,21 @@ def test_generated_word_lines_spans_and_values(dialect, lines, newline, final_ne
         assert s == start and ln == line_no
 
 
+# up to the fast path's 32 characters: 15 digits and fewer are read by integer arithmetic,
+# more by the string conversion; both must be float()'s value to the last bit (-0 too)
+LONG_NUMBER = st.from_regex(r"[+-]?(?:[0-9]{1,20}\.?[0-9]{0,10}|\.[0-9]{1,25})", fullmatch=True)
+
+
+@settings(max_examples=300)
+@given(st.lists(LONG_NUMBER, min_size=1, max_size=40))
+def test_fast_path_values_are_float_to_the_bit(numbers):
+    text = "".join(f"X{n}\n" for n in numbers)
+    prog = parse_text(text)
+    assert prog.n_words == len(numbers)
+    expected = np.array([float(n) for n in numbers])
+    assert np.array_equal(prog.word_value.view(np.uint64), expected.view(np.uint64)), numbers
+
+
 NEAR_MISS = st.text(st.sampled_from("GXSFgx0123456789.+- \t#[]=()%;/O*$:\x00\x7f\xa0"),
                     max_size=24)
 
