@@ -35,16 +35,42 @@ class WordStyle:
 
     def format_all(self, values) -> list[str]:
         """Many numbers at once (a rewrite writes ~1M)."""
+        distinct, code = self.format_distinct(values)
+        return np.array(distinct, dtype=object)[code].tolist()
+
+    def format_distinct(self, values) -> tuple[list[str], np.ndarray]:
+        """(texts, code): each distinct text once, and the index of each value's text.
+
+        A rewrite writes ~1M numbers but a few thousand distinct ones: each is
+        formatted once.  Values are told apart by what is formatted (the rounded
+        integer; else the float's bits, so -0.0 and 0.0 stay apart)."""
+        values = np.asarray(values, float)
         if self.decimals == 0:
             dot = "." if self.trailing_point else ""
-            return [f"{v}{dot}" for v in np.round(np.asarray(values, float)).astype(np.int64).tolist()]
+            distinct, code = _distinct(np.round(values).astype(np.int64))
+            return [f"{v}{dot}" for v in distinct.tolist()], code
         spec = f".{self.decimals}f"
-        return [format(v, spec) for v in np.asarray(values, float).tolist()]
+        distinct, code = _distinct(values.view(np.int64))
+        return [format(v, spec) for v in distinct.view(np.float64).tolist()], code
 
     def quantize_down(self, value: float) -> float:
         """Largest representable value <= value (so fz never exceeds its target)."""
         scale = 10.0 ** self.decimals
         return math.floor(value * scale + 1e-9) / scale
+
+
+def _distinct(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """np.unique(keys, return_inverse=True), by a table where the keys span a short
+    range (an S or F value: no sort)."""
+    if keys.size == 0:
+        return keys, np.zeros(0, dtype=np.intp)
+    lo, hi = int(keys.min()), int(keys.max())
+    if hi - lo > 4 * keys.size + 1024:
+        return np.unique(keys, return_inverse=True)
+    present = np.zeros(hi - lo + 1, dtype=bool)
+    present[keys - lo] = True
+    rank = np.cumsum(present, dtype=np.intp) - 1
+    return np.flatnonzero(present) + lo, rank[keys - lo]
 
 
 _NUM = re.compile(r"[+-]?(\d*)(?:\.(\d*))?$")
@@ -164,13 +190,14 @@ def _append_words(prog, code, line, values, style, editable):
     """
     c_line, c_val = _consumers(line, values)
     if c_line.size == 0:
-        return c_line, []
+        return c_line, ([], np.zeros(0, dtype=np.intp))
     sel = np.flatnonzero(prog.word_letter == code)
     if sel.size == 0:  # no such word anywhere: every change of target needs one
         prev = np.concatenate(([np.nan], c_val[:-1]))
         need = ~_same_formatted(c_val, prev, style)
         floor = np.concatenate(([-1], c_line[:-1]))[need]
-        return _carriers(prog, c_line[need], floor, editable, code), style.format_all(c_val[need])
+        return _carriers(prog, c_line[need], floor, editable, code), \
+            style.format_distinct(c_val[need])
     w_line = prog.word_line[sel]
     w_opaque = ~editable[w_line]
     w_val = prog.word_value[sel]
@@ -191,7 +218,7 @@ def _append_words(prog, code, line, values, style, editable):
     same = np.where(opaque_between, held, _same_formatted(c_val, previous, style))
     need = ~settled & ~same
     floor = np.where(opaque_between, w_line[np.maximum(last, 0)], prev_line)[need]
-    return _carriers(prog, c_line[need], floor, editable, code), style.format_all(c_val[need])
+    return _carriers(prog, c_line[need], floor, editable, code), style.format_distinct(c_val[need])
 
 
 def _carriers(prog, lines: np.ndarray, floor: np.ndarray, editable: np.ndarray, code: int):
@@ -235,8 +262,10 @@ def _same_formatted(a: np.ndarray, b: np.ndarray, style: WordStyle) -> np.ndarra
 def _insertions(prog, appended: dict, style) -> Edits:
     """New words go after the last word of their line, S before F unless the post differs.
 
-    ``appended`` maps S_CODE / F_CODE to (lines, formatted values), lines increasing."""
-    (s_lines, s_text), (f_lines, f_text) = appended[S_CODE], appended[F_CODE]
+    ``appended`` maps S_CODE / F_CODE to (lines, (texts, code)): lines increasing, the
+    distinct formatted values and the index of each line's (see
+    :meth:`WordStyle.format_distinct`).  Each distinct (S, F) pair's text is built once."""
+    (s_lines, (s_texts, s_code)), (f_lines, (f_texts, f_code)) = appended[S_CODE], appended[F_CODE]
     if len(s_lines) + len(f_lines) == 0:
         return Edits.of()
     mark = np.zeros(prog.n_lines + 1, dtype=bool)
@@ -244,25 +273,24 @@ def _insertions(prog, appended: dict, style) -> Edits:
     mark[f_lines] = True
     lines = np.flatnonzero(mark)
     sep = style.separator
-    if len(s_lines) == lines.size and len(f_lines) == lines.size:  # both on every line
-        texts = ([f"{sep}S{a}{sep}F{b}" for a, b in zip(s_text, f_text)] if style.s_before_f
-                 else [f"{sep}F{b}{sep}S{a}" for a, b in zip(s_text, f_text)])
-    else:
-        s_part = [f"{sep}S{t}" for t in s_text]
-        f_part = [f"{sep}F{t}" for t in f_text]
-        first, second = (s_lines, s_part), (f_lines, f_part)
-        if not style.s_before_f:
-            first, second = second, first
-        joined = np.full(lines.size, "", dtype=object)
-        for part_lines, parts in (first, second):
-            pos = np.searchsorted(lines, part_lines)
-            joined[pos] = joined[pos] + np.array(parts, dtype=object)
-        texts = joined.tolist()
+    # per line, the index of its S text and of its F text; the last of each: none
+    s_at = np.full(lines.size, len(s_texts), dtype=np.int64)
+    s_at[np.searchsorted(lines, s_lines)] = s_code
+    f_at = np.full(lines.size, len(f_texts), dtype=np.int64)
+    f_at[np.searchsorted(lines, f_lines)] = f_code
+    pairs, code = _distinct(s_at * (len(f_texts) + 1) + f_at)
+    s_part = [f"{sep}S{t}" for t in s_texts] + [""]
+    f_part = [f"{sep}F{t}" for t in f_texts] + [""]
+    s_of, f_of = np.divmod(pairs, len(f_texts) + 1)
+    joined = ([s_part[a] + f_part[b] for a, b in zip(s_of.tolist(), f_of.tolist())]
+              if style.s_before_f else
+              [f_part[b] + s_part[a] for a, b in zip(s_of.tolist(), f_of.tolist())])
+    texts = np.array(joined, dtype=object)[code].tolist()
     last_word = np.searchsorted(prog.word_line, lines, side="right") - 1
     on_line = (last_word >= 0) & (prog.word_line[np.maximum(last_word, 0)] == lines)
     at = np.where(on_line, prog.word_end[np.maximum(last_word, 0)], prog.line_start[lines])
     at = at.astype(np.int64)
-    return Edits(at, at.copy(), texts, len(s_text), len(f_text))
+    return Edits(at, at.copy(), texts, len(s_lines), len(f_lines))
 
 
 def apply_edits(text: str, edits) -> str:
