@@ -364,13 +364,15 @@ def _fast_path(raw, line_start, content_end, classes):
     run_at = np.flatnonzero(run_start[num_idx])
     length = np.diff(np.append(run_at, num_idx.size))
     run_last = run_at + length - 1
-    is_point, is_digit = cc_num == _POINT, cc_num == _DIGIT
-    points = _run_sums(np.cumsum(is_point, dtype=np.int32), is_point, run_at, run_last)
+    is_digit = cc_num == _DIGIT
+    point_at = np.flatnonzero(cc_num == _POINT)
+    point_run = np.searchsorted(run_at, point_at, side="right") - 1
     digits_upto = np.cumsum(is_digit, dtype=np.int32)
     digits = _run_sums(digits_upto, is_digit, run_at, run_last)
     run_first = num_idx[run_at]
     run_line = ln[run_first]
-    bad_run = (points > 1) | (digits < 1) | (length > _MAX_NUMBER_CHARS)
+    bad_run = (digits < 1) | (length > _MAX_NUMBER_CHARS)
+    bad_run[point_run[1:][point_run[1:] == point_run[:-1]]] = True  # two points
     bad[run_line[bad_run]] = True
     blank = ~has_tok & ~bad
     fast = has_tok & ~bad
@@ -379,8 +381,8 @@ def _fast_path(raw, line_start, content_end, classes):
     num_len = length[keep]
     letter_pos = idx[run_first - 1][keep].astype(np.int64)
     letter = raw[letter_pos] & 0xDF  # upper case ASCII
-    values = _number_values(raw[idx[num_idx]], is_point, is_digit, digits_upto, run_at,
-                            run_last, digits)[keep]
+    values = _number_values(raw[idx[num_idx]], is_digit, digits_upto, run_at, run_last,
+                            point_at, point_run)[keep]
     long = np.flatnonzero(digits[keep] > _EXACT_DIGITS)
     if long.size:
         values[long] = _parse_numbers(raw, num_start[long], num_len[long])
@@ -403,10 +405,11 @@ _POW10_INT = 10 ** np.arange(_EXACT_DIGITS + 1, dtype=np.int64)
 _POW10 = 10.0 ** np.arange(_MAX_NUMBER_CHARS + 1)
 
 
-def _number_values(chars, is_point, is_digit, digits_upto, run_at, run_last, digits):
+def _number_values(chars, is_digit, digits_upto, run_at, run_last, point_at, point_run):
     """Float values of the number runs (``[sign] digits [. digits]``, consecutive in
     ``chars`` from ``run_at`` to ``run_last``), exact for runs of up to 15 digits (the
-    caller reads longer ones otherwise).  ``digits_upto``: running count of digits."""
+    caller reads longer ones otherwise).  ``digits_upto``: running count of digits;
+    ``point_at``: where the points are, ``point_run``: in which run."""
     if run_at.size == 0:
         return np.zeros(0, dtype=np.float64)
     # per character: the digits after it in its run (a digit's power of ten; at the
@@ -418,8 +421,7 @@ def _number_values(chars, is_point, is_digit, digits_upto, run_at, run_last, dig
     term *= (chars - ord("0")) * is_digit  # 0 at the sign and the point
     mantissa = _run_sums(np.cumsum(term), term, run_at, run_last)
     decimals = np.zeros(run_at.size, dtype=np.int64)
-    at = np.flatnonzero(is_point)
-    decimals[np.searchsorted(run_at, at, side="right") - 1] = after[at]
+    decimals[point_run] = after[point_at]
     values = mantissa / _POW10[decimals]
     np.negative(values, out=values, where=chars[run_at] == ord("-"))
     return values

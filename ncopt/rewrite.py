@@ -333,9 +333,11 @@ def masked(prog: Program) -> str:
         back = back[(raw[start[back] - 1] == 32) | (raw[start[back] - 1] == 9)]
         start[back] -= 1
         back = back[start[back] > floor[back]]
-    cut = np.zeros(raw.size + 1, dtype=np.int8)  # +1 where a removal starts, -1 where it ends
-    cut[start] = 1
-    cut[end] -= 1  # a removal may start where the previous one ends: the two sum to 0
-    np.cumsum(cut, dtype=np.int8, out=cut)
-    keep = cut[:-1] == 0
-    return raw[keep].tobytes().decode("latin-1")
+    # the removals are in order and apart (one may start where the previous one ends):
+    # kept, removed, kept, ..., removed, kept
+    bounds = np.empty(2 * sel.size + 2, dtype=np.int64)
+    bounds[0], bounds[-1] = 0, raw.size
+    bounds[1:-1:2], bounds[2:-1:2] = start, end
+    kept = np.zeros(2 * sel.size + 1, dtype=bool)
+    kept[0::2] = True
+    return raw[np.repeat(kept, np.diff(bounds))].tobytes().decode("latin-1")
