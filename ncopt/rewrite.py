@@ -204,20 +204,23 @@ def _append_words(prog, code, line, values, style, editable):
     own = np.isin(c_line, w_line[~w_opaque])
     # the last word at or before the consumer's line: a word on its own line that may not
     # be edited holds its own value there
-    last = np.searchsorted(w_line, c_line, side="right") - 1
+    last = np.searchsorted(w_line, c_line.astype(w_line.dtype), side="right") - 1
     prev_line = np.concatenate(([-1], c_line[:-1]))
     has = last >= 0
-    between = has & (w_line[np.maximum(last, 0)] > prev_line)
-    opaque_between = between & w_opaque[np.maximum(last, 0)]
+    np.maximum(last, 0, out=last)
+    last_line = w_line[last]
+    between = has & (last_line > prev_line)
+    opaque_between = between & w_opaque[last]
     previous = np.concatenate(([np.nan], c_val[:-1]))  # a target, written by the style
-    opaque_val = w_val[np.maximum(last, 0)]  # a word left as the program has it
     settled = own | (between & ~opaque_between)
+    same = _same_formatted(c_val, previous, style)
     # a word left alone holds its own value; an expression there (S#<rpm>) holds what
     # the program computes, which ncopt did not change
-    held = _says_exactly(opaque_val, c_val, style) | np.isnan(opaque_val)
-    same = np.where(opaque_between, held, _same_formatted(c_val, previous, style))
+    at = np.flatnonzero(opaque_between)
+    opaque_val = w_val[last[at]]  # a word left as the program has it
+    same[at] = _says_exactly(opaque_val, c_val[at], style) | np.isnan(opaque_val)
     need = ~settled & ~same
-    floor = np.where(opaque_between, w_line[np.maximum(last, 0)], prev_line)[need]
+    floor = np.where(opaque_between, last_line, prev_line)[need]
     return _carriers(prog, c_line[need], floor, editable, code), style.format_distinct(c_val[need])
 
 
@@ -286,7 +289,8 @@ def _insertions(prog, appended: dict, style) -> Edits:
               if style.s_before_f else
               [f_part[b] + s_part[a] for a, b in zip(s_of.tolist(), f_of.tolist())])
     texts = np.array(joined, dtype=object)[code].tolist()
-    last_word = np.searchsorted(prog.word_line, lines, side="right") - 1
+    last_word = np.searchsorted(prog.word_line, lines.astype(prog.word_line.dtype),
+                                side="right") - 1
     on_line = (last_word >= 0) & (prog.word_line[np.maximum(last_word, 0)] == lines)
     at = np.where(on_line, prog.word_end[np.maximum(last_word, 0)], prog.line_start[lines])
     at = at.astype(np.int64)
