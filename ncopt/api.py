@@ -398,12 +398,14 @@ def _check_untouched(prog, out_prog, in_stamps, out_stamps, scope, tp) -> None:
                 out_prog.text[out_prog.line_start[j]:out_prog.line_start[j + 1]]:
             raise VerificationError("a line ncopt leaves alone changed; nothing written",
                                     prog.path, i + 1)
-    ls = tp.lines
+    check = scope.fixed[a]
+    if not check.any():
+        return
+    executed = tp.lines.executed
+    out_executed = _shift_lines(executed, out_prog.n_lines, in_stamps, out_stamps)
     for code in (S_CODE, F_CODE):
-        before = _in_force(prog, code, ls.executed)[a]
-        after = _in_force(out_prog, code, _shift_lines(ls.executed, out_prog.n_lines,
-                                                       in_stamps, out_stamps))[b]
-        check = scope.fixed[a]
+        before = _in_force(prog, code, executed)[a]
+        after = _in_force(out_prog, code, out_executed)[b]
         bad = np.flatnonzero(check & ~((before == after) | (np.isnan(before) & np.isnan(after))))
         if bad.size:
             raise VerificationError(
@@ -413,7 +415,8 @@ def _check_untouched(prog, out_prog, in_stamps, out_stamps, scope, tp) -> None:
 
 def _in_force(prog: Program, code: int, executed: np.ndarray) -> np.ndarray:
     """(n_lines,) value of the last ``code`` word at or before each line (executed lines)."""
-    sel = (prog.word_letter == code) & executed[prog.word_line]
+    sel = np.flatnonzero(prog.word_letter == code)
+    sel = sel[executed[prog.word_line[sel]]]
     per_line = np.full(prog.n_lines, np.nan)
     per_line[prog.word_line[sel]] = np.nan_to_num(prog.word_value[sel], nan=-1.0)
     return ffill(per_line)
