@@ -201,7 +201,7 @@ def _append_words(prog, code, line, values, style, editable):
     w_line = prog.word_line[sel]
     w_opaque = ~editable[w_line]
     w_val = prog.word_value[sel]
-    own = _contains(w_line[~w_opaque], c_line)
+    own = np.isin(c_line, w_line[~w_opaque])
     # the last word at or before the consumer's line: a word on its own line that may not
     # be edited holds its own value there
     last = np.searchsorted(w_line, c_line.astype(w_line.dtype), side="right") - 1
@@ -222,14 +222,6 @@ def _append_words(prog, code, line, values, style, editable):
     need = ~settled & ~same
     floor = np.where(opaque_between, last_line, prev_line)[need]
     return _carriers(prog, c_line[need], floor, editable, code), style.format_distinct(c_val[need])
-
-
-def _contains(sorted_lines: np.ndarray, lines: np.ndarray) -> np.ndarray:
-    """np.isin(lines, sorted_lines) for a sorted ``sorted_lines`` (no sort)."""
-    if sorted_lines.size == 0:
-        return np.zeros(lines.shape, dtype=bool)
-    at = np.searchsorted(sorted_lines, lines.astype(sorted_lines.dtype))
-    return sorted_lines[np.minimum(at, sorted_lines.size - 1)] == lines
 
 
 def _carriers(prog, lines: np.ndarray, floor: np.ndarray, editable: np.ndarray, code: int):
