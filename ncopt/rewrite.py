@@ -165,7 +165,8 @@ def _replace_words(prog, code, line, values, style, editable) -> Edits:
     words = words[editable[prog.word_line[words]]]
     if words.size == 0 or c_line.size == 0:
         return Edits.of()
-    nxt = np.searchsorted(c_line, prog.word_line[words], side="left")
+    # np.searchsorted(c_line, word lines, side="left"), by a table per line
+    nxt = _first_at_or_after(c_line, prog.n_lines)[prog.word_line[words]]
     ok = nxt < c_line.shape[0]
     words, new = words[ok], c_val[nxt[ok]]
     old = prog.word_value[words]
@@ -204,7 +205,7 @@ def _append_words(prog, code, line, values, style, editable):
     own = np.isin(c_line, w_line[~w_opaque])
     # the last word at or before the consumer's line: a word on its own line that may not
     # be edited holds its own value there
-    last = np.searchsorted(w_line, c_line.astype(w_line.dtype), side="right") - 1
+    last = _last_at_or_before(w_line, prog.n_lines)[c_line]
     prev_line = np.concatenate(([-1], c_line[:-1]))
     has = last >= 0
     np.maximum(last, 0, out=last)
@@ -222,6 +223,24 @@ def _append_words(prog, code, line, values, style, editable):
     need = ~settled & ~same
     floor = np.where(opaque_between, last_line, prev_line)[need]
     return _carriers(prog, c_line[need], floor, editable, code), style.format_distinct(c_val[need])
+
+
+def _last_at_or_before(lines: np.ndarray, n_lines: int) -> np.ndarray:
+    """(n_lines,) index of the last of the sorted ``lines`` at or before each line, -1
+    where none is: np.searchsorted(lines, line, side="right") - 1 for every line at once."""
+    table = np.full(n_lines, -1, dtype=np.int64)
+    last = np.flatnonzero(np.append(lines[1:] != lines[:-1], True)) if lines.size else lines
+    table[lines[last]] = last
+    return np.maximum.accumulate(table)
+
+
+def _first_at_or_after(lines: np.ndarray, n_lines: int) -> np.ndarray:
+    """(n_lines,) index of the first of the sorted ``lines`` at or after each line,
+    ``lines.size`` where none is: np.searchsorted(lines, line, side="left") for every line."""
+    table = np.full(n_lines, lines.size, dtype=np.int64)
+    first = np.flatnonzero(np.append(True, lines[1:] != lines[:-1])) if lines.size else lines
+    table[lines[first]] = first
+    return np.minimum.accumulate(table[::-1])[::-1]
 
 
 def _carriers(prog, lines: np.ndarray, floor: np.ndarray, editable: np.ndarray, code: int):
@@ -278,9 +297,10 @@ def _insertions(prog, appended: dict, style) -> Edits:
     sep = style.separator
     # per line, the index of its S text and of its F text; the last of each: none
     s_at = np.full(lines.size, len(s_texts), dtype=np.int64)
-    s_at[np.searchsorted(lines, s_lines)] = s_code
+    rank = np.cumsum(mark) - 1  # where each marked line stands in ``lines``
+    s_at[rank[s_lines]] = s_code
     f_at = np.full(lines.size, len(f_texts), dtype=np.int64)
-    f_at[np.searchsorted(lines, f_lines)] = f_code
+    f_at[rank[f_lines]] = f_code
     pairs, code = _distinct(s_at * (len(f_texts) + 1) + f_at)
     s_part = [f"{sep}S{t}" for t in s_texts] + [""]
     f_part = [f"{sep}F{t}" for t in f_texts] + [""]
@@ -289,8 +309,7 @@ def _insertions(prog, appended: dict, style) -> Edits:
               if style.s_before_f else
               [f_part[b] + s_part[a] for a, b in zip(s_of.tolist(), f_of.tolist())])
     texts = np.array(joined, dtype=object)[code].tolist()
-    last_word = np.searchsorted(prog.word_line, lines.astype(prog.word_line.dtype),
-                                side="right") - 1
+    last_word = _last_at_or_before(prog.word_line, prog.n_lines + 1)[lines]
     on_line = (last_word >= 0) & (prog.word_line[np.maximum(last_word, 0)] == lines)
     at = np.where(on_line, prog.word_end[np.maximum(last_word, 0)], prog.line_start[lines])
     at = at.astype(np.int64)
