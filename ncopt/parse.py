@@ -31,6 +31,7 @@ from .dialect import DIALECTS, FANUC, GENERIC, GRBL
 from .errors import NcParseError, UsageError
 from .memory import release_freed_memory
 from .model import VECTOR_WORD_CODES, LineKind, Program
+from .numtext import EXACT_DIGITS, MAX_NUMBER_CHARS, number_values, parse_numbers, run_sums
 from .refuse import caret_context, check_text, klartext_what, looks_like_klartext
 from .threads import available_cpus, map_in_threads
 
@@ -39,7 +40,6 @@ __all__ = ["caret_context", "grammar_path", "dialect_name", "parser", "byte_clas
 
 # byte classes of the fast path
 _SPACE, _LETTER, _DIGIT, _SIGN, _POINT, _NL, _OTHER = range(7)
-_MAX_NUMBER_CHARS = 32
 
 
 def grammar_path(name: str = "generic.lark") -> Path:
@@ -368,10 +368,10 @@ def _fast_path(raw, line_start, content_end, classes):
     point_at = np.flatnonzero(cc_num == _POINT)
     point_run = np.searchsorted(run_at, point_at, side="right") - 1
     digits_upto = np.cumsum(is_digit, dtype=np.int32)
-    digits = _run_sums(digits_upto, is_digit, run_at, run_last)
+    digits = run_sums(digits_upto, is_digit, run_at, run_last)
     run_first = num_idx[run_at]
     run_line = ln[run_first]
-    bad_run = (digits < 1) | (length > _MAX_NUMBER_CHARS)
+    bad_run = (digits < 1) | (length > MAX_NUMBER_CHARS)
     bad_run[point_run[1:][point_run[1:] == point_run[:-1]]] = True  # two points
     bad[run_line[bad_run]] = True
     blank = ~has_tok & ~bad
@@ -381,61 +381,14 @@ def _fast_path(raw, line_start, content_end, classes):
     num_len = length[keep]
     letter_pos = idx[run_first - 1][keep].astype(np.int64)
     letter = raw[letter_pos] & 0xDF  # upper case ASCII
-    values = _number_values(raw[idx[num_idx]], is_digit, digits_upto, run_at, run_last,
-                            point_at, point_run)[keep]
-    long = np.flatnonzero(digits[keep] > _EXACT_DIGITS)
+    values = number_values(raw[idx[num_idx]], is_digit, digits_upto, run_at, run_last,
+                           point_at, point_run)[keep]
+    long = np.flatnonzero(digits[keep] > EXACT_DIGITS)
     if long.size:
-        values[long] = _parse_numbers(raw, num_start[long], num_len[long])
+        values[long] = parse_numbers(raw, num_start[long], num_len[long])
     words = (run_line[keep].astype(np.int32), letter.astype(np.uint8), values,
              letter_pos, num_start + num_len, num_start)
     return fast, blank, words
-
-
-def _run_sums(upto, values, run_at, run_last):
-    """Sum of ``values`` over each run, from their running sum ``upto`` (which may wrap
-    around: the difference of two int64 sums is exact while the run's own sum fits)."""
-    return upto[run_last] - upto[run_at] + values[run_at]
-
-
-# Up to 15 digits the digits read as an integer are exact in a float64 (< 2**53), and
-# so is 10**k for every k <= 15: their quotient, one IEEE division, is the correctly
-# rounded value of the text, which is what float() gives (Clinger's fast path).
-_EXACT_DIGITS = 15
-_POW10_INT = 10 ** np.arange(_EXACT_DIGITS + 1, dtype=np.int64)
-_POW10 = 10.0 ** np.arange(_MAX_NUMBER_CHARS + 1)
-
-
-def _number_values(chars, is_digit, digits_upto, run_at, run_last, point_at, point_run):
-    """Float values of the number runs (``[sign] digits [. digits]``, consecutive in
-    ``chars`` from ``run_at`` to ``run_last``), exact for runs of up to 15 digits (the
-    caller reads longer ones otherwise).  ``digits_upto``: running count of digits;
-    ``point_at``: where the points are, ``point_run``: in which run."""
-    if run_at.size == 0:
-        return np.zeros(0, dtype=np.float64)
-    # per character: the digits after it in its run (a digit's power of ten; at the
-    # point, the number of decimals)
-    after = np.repeat(digits_upto[run_last], run_last + 1 - run_at)
-    after -= digits_upto
-    np.minimum(after, _EXACT_DIGITS, out=after)
-    term = _POW10_INT[after]
-    term *= (chars - ord("0")) * is_digit  # 0 at the sign and the point
-    mantissa = _run_sums(np.cumsum(term), term, run_at, run_last)
-    decimals = np.zeros(run_at.size, dtype=np.int64)
-    decimals[point_run] = after[point_at]
-    values = mantissa / _POW10[decimals]
-    np.negative(values, out=values, where=chars[run_at] == ord("-"))
-    return values
-
-
-def _parse_numbers(raw, start, length) -> np.ndarray:
-    """Float values of number texts ``raw[start:start+length]`` (vectorised)."""
-    if start.shape[0] == 0:
-        return np.zeros(0, dtype=np.float64)
-    width = int(length.max())
-    cols = np.arange(width)
-    pos = start[:, None] + cols[None, :]
-    chars = np.where(cols[None, :] < length[:, None], raw[np.minimum(pos, raw.shape[0] - 1)], 32)
-    return chars.astype(np.uint8).view(f"S{width}").ravel().astype(np.float64)
 
 
 def _parse_slow_line(text: str, lo: int, hi: int, line_no: int, path: str, name: str):
