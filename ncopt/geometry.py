@@ -159,6 +159,19 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return np.divide(v, n, out=np.zeros_like(v), where=n > 0)
 
 
+def _unit_or(v: np.ndarray, fallback: np.ndarray) -> None:
+    """Scale rows of ``v`` to unit length in place; rows that are not finite or
+    shorter than 0.5 become the rows of ``fallback``."""
+    length = np.linalg.norm(v, axis=1)
+    bad = ~(length >= 0.5)  # NaN too
+    inf = np.flatnonzero(np.isinf(length))  # an infinite coordinate, or only huge ones
+    bad[inf] = ~np.all(np.isfinite(v[inf]), axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        np.divide(v, length[:, None], out=v)
+    bad = np.flatnonzero(bad)
+    v[bad] = fallback[bad]
+
+
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.einsum("ij,ij->i", a, b)
 
@@ -222,12 +235,7 @@ class MeshIndex:
         cn = (self._corner_normals() if corner_normals is None else  # ours, or a copy
               np.array(corner_normals, dtype=np.float64).reshape(-1, 3, 3))
         for k in range(3):  # unit corner normals; the facet's where one is unusable
-            c = cn[:, k]
-            length = np.linalg.norm(c, axis=1)
-            bad = ~np.all(np.isfinite(c), axis=1) | (length < 0.5)
-            c = np.divide(c, length[:, None], out=np.zeros_like(c), where=length[:, None] > 0)
-            c[bad] = self.face_normal[bad]
-            cn[:, k] = c
+            _unit_or(cn[:, k], self.face_normal)
         self.corner_normal = cn
         release_freed_memory()  # this thread's arena: the main thread cannot reuse it
 
@@ -237,9 +245,11 @@ class MeshIndex:
         sharp = np.zeros(V.shape[0], dtype=bool)
         sharp[F[self.feature_edge]] = True
         sharp[np.roll(F, -1, axis=1)[self.feature_edge]] = True
-        if np.any(sharp):
-            split = igl.per_corner_normals(V, F, self.feature_angle_deg).reshape(-1, 3, 3)
-            cn = np.where(sharp[F][:, :, None], split, cn)
+        at_sharp = sharp[F]
+        near = np.flatnonzero(np.any(at_sharp, axis=1))
+        if near.size:  # a corner averages the faces at its vertex: only those faces
+            split = igl.per_corner_normals(V, F[near], self.feature_angle_deg).reshape(-1, 3, 3)
+            cn[near] = np.where(at_sharp[near][:, :, None], split, cn[near])
         return cn
 
     @functools.cached_property
