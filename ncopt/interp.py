@@ -153,12 +153,15 @@ class _LineTable:
 def ffill(values: np.ndarray, initial: float = np.nan) -> np.ndarray:
     """Forward-fill NaNs with the last value before them (``initial`` at the start)."""
     n = values.shape[0]
-    idx = np.arange(n, dtype=np.int32 if n < 2**31 else np.int64)
-    idx[np.isnan(values)] = -1
-    np.maximum.accumulate(idx, out=idx)
-    out = np.asarray(values, dtype=np.float64)[np.maximum(idx, 0)]
-    out[idx < 0] = initial
-    return out
+    pos = np.flatnonzero(~np.isnan(values))  # each value repeated up to the next one
+    vals = np.asarray(values, dtype=np.float64)
+    if pos.size == n:
+        return vals.copy()
+    src = np.empty(pos.size + 1)
+    src[0] = initial
+    src[1:] = vals[pos]
+    counts = np.diff(pos, prepend=0, append=n)  # counts[0]: before the first value
+    return np.repeat(src, counts)
 
 
 def _evaluate(prog: Program, skip: np.ndarray | None = None):
@@ -427,6 +430,7 @@ def _positions(prog, lines, modal, executed, poisoned, warnings):
     pos = np.zeros((lines.n, 3))
     known = np.zeros((lines.n, 3), dtype=bool)
     idx = np.arange(lines.n)
+    last_evt = np.maximum.accumulate(np.where(events, idx, -1))
     for k, axis in enumerate("XYZ"):
         value = lines.value(axis) * scale
         present = lines.present(axis) & executed & ~special & ~np.isnan(value)
@@ -436,7 +440,6 @@ def _positions(prog, lines, modal, executed, poisoned, warnings):
         base = np.where(absolute, value - cum, np.nan)
         pos[:, k] = ffill(base, 0.0) + cum
         last_abs = np.maximum.accumulate(np.where(absolute, idx, -1))
-        last_evt = np.maximum.accumulate(np.where(events, idx, -1))
         known[:, k] = last_abs > last_evt
         # an event on the same line as an absolute word: the word is a target
         # of that special move (G28 X0...), the axis stays unknown
@@ -488,7 +491,10 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
             xyz[rows[j] + 1:rows[j + 1] + 1] = piece[0]
             lengths[rows[j] + 1:rows[j + 1] + 1] = piece[1]
     xyz[0] = end[0] if end.shape[0] else 0.0
-    rep = lambda a, first: np.concatenate(([first], np.repeat(a, counts)))  # noqa: E731
+    one_each = n_pts == move_lines.shape[0] + 1  # no arc cut into pieces: nothing to repeat
+
+    def rep(a, first):
+        return np.concatenate(([first], a if one_each else np.repeat(a, counts)))
     line = rep(move_lines, -1).astype(np.int32)
     mcode = rep(np.nan_to_num(motion[move_lines], nan=-10) // 10, -1).astype(np.int8)
     feed_mm, g93 = feed_mm[move_lines], modal.feed_mode[move_lines] == G93

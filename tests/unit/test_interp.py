@@ -6,9 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from ncopt.errors import NcoptError
-from ncopt.interp import StartState, interpret
+from ncopt.interp import StartState, ffill, interpret
 from ncopt.model import Motion
 from ncopt.parse import parse_text
 
@@ -279,3 +281,16 @@ def test_errors_are_located(text, line):
     assert (err.path, err.line) == ("t.nc", line)
     assert str(err).startswith(f"t.nc:{line}:")
     assert "; " in err.message
+
+
+@given(st.lists(st.one_of(st.none(), st.floats(allow_nan=False)), max_size=40),
+       st.sampled_from([math.nan, 0.0, -1.0]))
+def test_ffill_carries_the_last_value_forward(items, initial):
+    values = np.array([math.nan if v is None else v for v in items], dtype=np.float64)
+    expected, last = [], initial
+    for v in values.tolist():
+        last = last if math.isnan(v) else v
+        expected.append(last)
+    out = ffill(values, initial)
+    assert out.dtype == np.float64 and out is not values
+    assert np.array_equal(out, np.array(expected, dtype=np.float64), equal_nan=True)
