@@ -164,6 +164,14 @@ def ffill(values: np.ndarray, initial: float = np.nan) -> np.ndarray:
     return np.repeat(src, counts)
 
 
+def row_norms(d: np.ndarray) -> np.ndarray:
+    """(m,) Euclidean length of each row of the (m, 3) ``d``: ``np.linalg.norm(d, axis=1)``,
+    the same sums in the same order (x^2 + y^2, then + z^2), without its reduction over a
+    3-long axis (2-3x slower at 1M rows)."""
+    x, y, z = d[:, 0], d[:, 1], d[:, 2]
+    return np.sqrt(x * x + y * y + z * z)
+
+
 def _evaluate(prog: Program, skip: np.ndarray | None = None):
     """Evaluate expression words and assignments in program order.
 
@@ -470,7 +478,7 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
     seg_len = np.zeros(move_lines.shape[0])
     prev_pt = np.vstack((np.zeros((1, 3)), end[:-1]))
     prev_known = np.concatenate(([False], end_known[:-1]))
-    seg_len[:] = np.linalg.norm(end - prev_pt, axis=1)
+    seg_len[:] = row_norms(end - prev_pt)
     for j in arcs.tolist():
         i = move_lines[j]
         if not (prev_known[j] and end_known[j]):

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .interp import row_norms
 from .model import Cutter, LineKind, Motion, Program, Toolpath
 
 FINISH_3D, FINISH_ZLEVEL = "3D surface finishing", "Z-level finishing"
@@ -228,7 +229,7 @@ def _samples(tp: Toolpath, points: np.ndarray, spacing_mm: float) -> _Samples:
     elif tp.tool_axis is not None and points.size:
         turning = np.any(np.abs(tp.tool_axis[points][:, :2]) > 1e-9, axis=1)
     d = b - a
-    length = np.linalg.norm(d, axis=1)
+    length = row_norms(d)
     cum = np.concatenate(([0.0], np.cumsum(length)))
     total = float(cum[-1])
     spacing = max(spacing_mm, total / MAX_SAMPLES, 1e-3)
@@ -289,7 +290,7 @@ def _retraced(tp: Toolpath, geo: np.ndarray, sm: _Samples, radius_mm: float) -> 
     frame = _tool_frame(tp, geo)  # 3+2: the samples are in the tool's frame, so the moves too
     if frame is not None:
         a, b = a @ frame.T, b @ frame.T
-    length = np.linalg.norm(b - a, axis=1)
+    length = row_norms(b - a)
     s_end = np.cumsum(length)
     stride = max(1, -(-flat.size // RETRACE_SAMPLES))  # every stride-th sample judged
     idx = flat[::stride]
@@ -472,7 +473,7 @@ def _parts(tp: Toolpath, pts: np.ndarray, feed: np.ndarray, diameter_mm: float) 
     prev = np.concatenate(([0], cf[r[:-1]])) if r.size else r
     starts = r[(cf[r] - prev) > 0] if r.size else r
     d = tp.xyz_mm[feed] - tp.xyz_mm[feed - 1]
-    plunge = np.abs(d[:, 2]) > 0.9 * np.maximum(np.linalg.norm(d, axis=1), 1e-12)
+    plunge = np.abs(d[:, 2]) > 0.9 * np.maximum(row_norms(d), 1e-12)
     f = tp.feed_mm_min[feed]
     typical = _weighted_median(f[~plunge], tp.seg_len_mm[feed][~plunge])  # plunges aside
     at_feed = f >= SLOW_FEED * typical
