@@ -488,18 +488,19 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
         counts[j] = pts.shape[0]
     _check_feed(prog, modal, move_lines)
     n_pts = int(counts.sum()) + 1
+    one_each = n_pts == move_lines.shape[0] + 1  # no arc cut into pieces: nothing to repeat
     xyz = np.zeros((n_pts, 3))
     rows = np.concatenate(([0], np.cumsum(counts)))  # first row of each move, minus 1
-    xyz[rows[1:]] = end
+    last_rows = slice(1, None) if one_each else rows[1:]  # each move's last point
+    xyz[last_rows] = end
     lengths = np.zeros(n_pts)
-    lengths[rows[1:]] = seg_len
+    lengths[last_rows] = seg_len
     for j in arcs.tolist():  # only arcs have pieces (a loop over 1M moves otherwise)
         piece = pieces[j]
         if piece is not None:
             xyz[rows[j] + 1:rows[j + 1] + 1] = piece[0]
             lengths[rows[j] + 1:rows[j + 1] + 1] = piece[1]
     xyz[0] = end[0] if end.shape[0] else 0.0
-    one_each = n_pts == move_lines.shape[0] + 1  # no arc cut into pieces: nothing to repeat
 
     def rep(a, first):
         return np.concatenate(([first], a if one_each else np.repeat(a, counts)))
