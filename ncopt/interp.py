@@ -263,9 +263,9 @@ def _check_semantics(prog: Program, lines: _LineTable, executed: np.ndarray) -> 
     groups = [G_MOTION - {800}, G_NON_MODAL_MOVE | {40}, G_PLANE, G_DISTANCE, G_UNITS,
               G_FEED_MODE, G_COMP]
     for group in groups:
-        sel = np.isin(lines.g_code, list(group))
-        counts = np.bincount(lines.g_line[sel], minlength=lines.n)
-        bad = np.flatnonzero((counts > 1) & executed)
+        line = lines.g_line[np.isin(lines.g_code, list(group))]  # in text order
+        twice = line[1:][line[1:] == line[:-1]]  # the lines holding two of the group
+        bad = twice[executed[twice]]
         if bad.size:
             _fail(prog, bad[0], "two G codes from the same modal group on one line; "
                   "put them on separate lines")
