@@ -103,21 +103,25 @@ class _LineTable:
     def __init__(self, prog: Program, values: np.ndarray) -> None:
         self.n = prog.n_lines
         self.letters = {}
-        letters = prog.word_letter
-        for code in np.unique(letters).tolist():
+        # the words grouped by letter, each group in text order (a stable sort): one
+        # pass over the words instead of one per letter
+        order = np.argsort(prog.word_letter, kind="stable")
+        codes, first = np.unique(prog.word_letter[order], return_index=True)
+        of = {code: order[a:b] for code, a, b in
+              zip(codes.tolist(), first.tolist(), first[1:].tolist() + [order.size])}
+        for code, sel in of.items():
             if code in (ord("G"), ord("M"), ord("N"), ord("O")):
                 continue
-            sel = letters == code
             arr = np.full(self.n, np.nan)
             arr[prog.word_line[sel]] = values[sel]
             present = np.zeros(self.n, dtype=bool)
             present[prog.word_line[sel]] = True
             self.letters[chr(code)] = (arr, present)
-        gsel = letters == ord("G")
+        gsel = of.get(ord("G"), np.zeros(0, np.int64))
         self.g_line = prog.word_line[gsel]
-        self.g_code = np.round(values[gsel] * 10).astype(np.int64, copy=False) if gsel.any() \
+        self.g_code = np.round(values[gsel] * 10).astype(np.int64, copy=False) if gsel.size \
             else np.zeros(0, np.int64)
-        msel = letters == ord("M")
+        msel = of.get(ord("M"), np.zeros(0, np.int64))
         self.m_line = prog.word_line[msel]
         self.m_code = np.nan_to_num(values[msel], nan=-1).astype(np.int64)
 
