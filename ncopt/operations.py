@@ -416,7 +416,8 @@ def _kind_of(sm: _Samples, sel: np.ndarray, nb: tuple, lv: _Levels,
     if above < 0.2:
         return TWO_D, np.nan, np.nan, "one Z level (2D contour, facing, engraving or 2D pocket)"
     near = flat & nb
-    retrace = float(sm.weight_mm[near & retraced()].sum()) / max(float(sm.weight_mm[near].sum()), 1e-12)
+    retrace = (float(sm.weight_mm[near & retraced()].sum())
+               / max(float(sm.weight_mm[near].sum()), 1e-12))
     if retrace >= RETRACE_SHARE:
         return TWO_D, step, np.nan, (
             f"the same contour at several depths {step:.3g} mm apart (vertical walls: a 2D "
@@ -462,10 +463,11 @@ def cutting_feed(tp: Toolpath, feed: np.ndarray) -> float:
 
 
 def _parts(tp: Toolpath, pts: np.ndarray, feed: np.ndarray, diameter_mm: float) -> list[_Part]:
-    """Cut the operation's points (``pts``: consecutive) at each rapid that follows a cut; classify each chunk
-    with the whole operation as context; merge neighbours of the same kind.  Geometry
-    comes from the moves near the typical feed (a helical ramp at a reduced feed is no
-    surface; an ncopt output, whose F follows S, keeps most of its moves)."""
+    """Cut the operation's points (``pts``: consecutive) at each rapid that follows a cut;
+    classify each chunk with the whole operation as context; merge neighbours of the
+    same kind.  Geometry comes from the moves near the typical feed (a helical ramp at a
+    reduced feed is no surface; an ncopt output, whose F follows S, keeps most of its
+    moves)."""
     is_feed = np.zeros(pts.shape, dtype=bool)
     is_feed[feed - pts[0]] = True  # pts: consecutive points; feed: some of them
     cf = np.cumsum(is_feed)

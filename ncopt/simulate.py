@@ -441,6 +441,10 @@ def _spindle_runs(moves: _Moves, a: float) -> _Runs:
     return _Runs(first_move=first, w0_rpm=w0, of_move=np.cumsum(brk) - 1)
 
 
+# _run_start_speeds: rounds, and runs recomputed per run, before the rest goes run by run
+RUN_ROUNDS, RUN_WORK = 200, 3
+
+
 def _ramped(w: np.ndarray, t: np.ndarray, d: np.ndarray) -> np.ndarray:
     """The speed after ramping from ``w`` toward ``t`` by at most ``d``, stopping at ``t``
     (``w + d`` reaching ``t`` is ``t``; NaN anywhere gives ``t``)."""
@@ -457,8 +461,12 @@ def _run_start_speeds(t: np.ndarray, s: np.ndarray, reach: np.ndarray) -> np.nda
     reached its command (most do), then recompute the runs after those whose guess was
     wrong, as often as a wrong guess still changes the next one (the longest chain of
     runs that end short of their command: ~70 rounds on the 700k runs of a 1M-block
-    rewrite).  Each run's value is the same float operations on the same values as
-    the run-by-run loop, so the result is that loop's, bit for bit."""
+    rewrite).  Every run before the first one still to be recomputed is then right;
+    after ``RUN_ROUNDS`` rounds, or once ``RUN_WORK`` times as many runs as there are
+    were recomputed (a spindle that lags behind its S words over thousands of runs),
+    the rest is finished run by run.  Each run's value is the same float
+    operations on the same values as the run-by-run loop, so the result is that
+    loop's, bit for bit."""
     n = t.shape[0]
     w0 = np.empty(n)
     if n == 0:
@@ -467,7 +475,13 @@ def _run_start_speeds(t: np.ndarray, s: np.ndarray, reach: np.ndarray) -> np.nda
     w0[1:] = t[:-1]
     w0[s] = t[s]
     k = None  # runs whose next one is to be (re)computed; None: all of them
-    while k is None or k.size:
+    budget = RUN_WORK * n  # runs recomputed in all rounds: past that a loop is cheaper
+    for _ in range(RUN_ROUNDS):
+        if k is not None and not k.size:
+            return w0
+        budget -= n if k is None else k.size
+        if budget < 0:
+            break
         if k is None:
             j = slice(1, n)
             nxt = np.where(s[j], t[j], _ramped(w0[:-1], t[:-1], reach[:-1]))
@@ -479,7 +493,29 @@ def _run_start_speeds(t: np.ndarray, s: np.ndarray, reach: np.ndarray) -> np.nda
         j = np.flatnonzero(changed) + 1 if k is None else j[changed]
         w0[j] = nxt[changed]
         k = j[j < n - 1]
+    if k is None or k.size:
+        _runs_one_by_one(w0, t, s, reach, 0 if k is None else int(k[0]))
     return w0
+
+
+def _runs_one_by_one(w0: np.ndarray, t: np.ndarray, s: np.ndarray, reach: np.ndarray,
+                     first: int) -> None:
+    """:func:`_run_start_speeds` from run ``first`` on (right up to it), run by run."""
+    w = float(w0[first])
+    target, starts, ramp = t.tolist(), s.tolist(), reach.tolist()
+    out = memoryview(w0)
+    for i in range(first, w0.shape[0] - 1):
+        if w < target[i]:
+            w += ramp[i]
+            if not w < target[i]:
+                w = target[i]
+        else:
+            w -= ramp[i]
+            if not w > target[i]:
+                w = target[i]
+        if starts[i + 1]:
+            w = target[i + 1]
+        out[i + 1] = w
 
 
 def lagging_blocks(prog: Program, tp: Toolpath, s_rpm: np.ndarray, f_mm_min: np.ndarray,
