@@ -33,7 +33,7 @@ from .threads import available_cpus, map_in_threads
 from .tools import r_eff_mm
 
 K_NEIGHBOURS = 12  # enough for 4-5 points per pass on each side at CAM-typical spacings
-CHUNK = 131072
+CHUNK = 16384  # points a chunk: its (chunk, k, 3) temporaries stay in a core's cache
 OTHER_PASS_RATIO = 3.0  # path distance > ratio * straight distance: another pass
 CONFIDENT, ONE_SIDED, NO_CROSS = 2, 1, 0
 # A one-sided fit on a curved surface tilts the normal by about half the stepover
@@ -70,30 +70,35 @@ def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarra
     axis : (m, 3) unit tool axes (5 axes), or None for +Z
     """
     m = centers_mm.shape[0]
-    normal = np.tile([0.0, 0.0, 1.0], (m, 1)) if axis is None else axis.copy()
+    if axis is None:
+        normal = np.zeros((m, 3))
+        normal[:, 2] = 1.0
+    else:
+        normal = axis.copy()
     confidence = np.zeros(m, dtype=np.int8)
     idx = np.flatnonzero(cutting)
     if idx.size < 2:
         return PathNormals(normal, confidence, float("nan"))
     pts, s = centers_mm[idx], path_mm[idx]
-    tangent = _tangents(pts, s)
-    tree = cKDTree(pts)
+    threads = available_cpus() if workers == -1 else workers
+    # the tree's build releases the GIL: the tangents are computed meanwhile
+    tree, tangent = map_in_threads(lambda job: job(), (lambda: cKDTree(pts),
+                                                       lambda: _tangents(pts, s)), threads)
     kk = min(k + 1, idx.size)
 
     def chunk(a: int) -> np.ndarray:  # bounded temporaries: (chunk, k, 3) at a time
         b = min(a + CHUNK, idx.size)
         dist, nb = tree.query(pts[a:b], k=kk, workers=1)
         dist, nb = np.atleast_2d(dist)[:, 1:], np.atleast_2d(nb)[:, 1:]
-        other = np.abs(s[nb] - s[a:b, None]) > OTHER_PASS_RATIO * dist + 1e-9
         up = None if axis is None else axis[idx[a:b]]
-        n, conf, closest = _fit_cross(pts[a:b], tangent[a:b], pts[nb], dist, other, up)
+        n, conf, closest = _fit_cross(pts[a:b], tangent[a:b], pts, nb, dist,
+                                      _other_pass(s, a, nb, dist), up)
         normal[idx[a:b]] = n
         confidence[idx[a:b]] = conf
         return closest
 
     # each thread queries and fits its own chunks: scipy's query and numpy's loops
     # release the GIL, so the fit of one chunk overlaps the query of the next
-    threads = available_cpus() if workers == -1 else workers
     near = np.concatenate(map_in_threads(chunk, range(0, idx.size, CHUNK), threads))
     stepover = float(np.median(near[np.isfinite(near)])) if np.isfinite(near).any() else float("nan")
     return PathNormals(normal, confidence, stepover)
@@ -101,37 +106,66 @@ def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarra
 
 def _tangents(pts: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Unit along-path tangents: central differences, one-sided at breaks."""
-    d = np.diff(pts, axis=0)
-    seg = np.linalg.norm(d, axis=1)
-    jump = np.abs(np.diff(s) - seg) > 1e-6  # not consecutive on the path
-    unit = d / np.maximum(seg, 1e-12)[:, None]
-    unit[jump | (seg < 1e-9)] = np.nan
-    before = np.vstack((unit[:1] * np.nan, unit))
-    after = np.vstack((unit, unit[:1] * np.nan))
-    t = np.nan_to_num(before) + np.nan_to_num(after)
-    norm = np.linalg.norm(t, axis=1)
+    unit = np.diff(pts, axis=0)
+    seg = _row_norm(unit)
+    jump = np.diff(s)
+    jump -= seg
+    np.abs(jump, out=jump)
+    bad = jump > 1e-6  # not consecutive on the path
+    bad |= seg < 1e-9
+    np.maximum(seg, 1e-12, out=seg)
+    unit /= seg[:, None]
+    unit[bad] = 0.0
+    np.nan_to_num(unit, copy=False)
+    # the sum of the unit steps before and after each point, a missing one zero (the
+    # ends add 0.0 too: the same bits, signed zeros included)
+    t = np.empty((pts.shape[0], 3))
+    t[0] = 0.0
+    t[1:] = unit
+    t[:-1] += unit
+    t[-1] += 0.0
+    norm = _row_norm(t)
     t /= np.maximum(norm, 1e-12)[:, None]
     t[norm < 1e-9] = [1.0, 0.0, 0.0]
     return t
 
 
-def _fit_cross(pts, tangent, nb_pts, dist, other, axis=None):
-    """Normal perpendicular to the tangent fitting the other-pass neighbours; also the
-    distance to the nearest other-pass point (inf where there is none).  ``axis``:
-    (m, 3) tool axes, None for +Z."""
+def _row_norm(v: np.ndarray) -> np.ndarray:
+    """(m,) Euclidean norms of the rows of ``v`` (m, 3): np.linalg.norm(v, axis=1),
+    without its copy of ``v``."""
+    sq = v * v
+    out = np.add.reduce(sq, axis=1)
+    return np.sqrt(out, out=out)
+
+
+def _other_pass(s: np.ndarray, a: int, nb: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """(m, k) bool: neighbour ``nb`` of point ``a + row`` lies on another pass (much
+    farther along the path, ``s``, than in a straight line, ``dist``)."""
+    along = s[nb]
+    along -= s[a:a + nb.shape[0], None]
+    np.abs(along, out=along)
+    limit = dist * OTHER_PASS_RATIO
+    limit += 1e-9
+    return np.greater(along, limit, out=np.empty(nb.shape, bool))
+
+
+def _fit_cross(pts, tangent, all_pts, nb, dist, other, axis=None):
+    """Normal perpendicular to the tangent fitting the other-pass neighbours
+    ``all_pts[nb]``; also the distance to the nearest other-pass point (inf where
+    there is none).  ``axis``: (m, 3) tool axes, None for +Z."""
     up = np.array([0.0, 0.0, 1.0]) if axis is None else axis
     u = np.cross(tangent, up)  # horizontal, across the pass
-    un = np.linalg.norm(u, axis=1)
-    vertical = un < 1e-6  # a plunge: any horizontal direction will do
+    vertical = _row_norm(u) < 1e-6  # a plunge: any horizontal direction will do
     u[vertical] = [1.0, 0.0, 0.0] if axis is None else _across(axis[vertical])
-    u /= np.maximum(np.linalg.norm(u, axis=1), 1e-12)[:, None]
+    u /= np.maximum(_row_norm(u), 1e-12)[:, None]
     v = np.cross(u, tangent)  # perpendicular to the tangent, in its vertical plane
     v[_up(v, axis) < 0] *= -1.0
-    off = nb_pts - pts[:, None, :]  # (m, k, 3)
+    off = all_pts[nb]  # (m, k, 3)
+    off -= pts[:, None, :]
     a = np.einsum("mkj,mj->mk", off, u)
     b = np.einsum("mkj,mj->mk", off, v)
-    w = np.where(other, 1.0 / np.maximum(dist, 1e-9) ** 2, 0.0)
-    saa, sbb, sab = (w * a * a).sum(1), (w * b * b).sum(1), (w * a * b).sum(1)
+    del off
+    saa, sbb, sab = _weighted_sums(a, b, dist, other)
     # smallest eigenvector of [[saa, sab], [sab, sbb]]: the direction (alpha, beta)
     # minimising sum w (alpha a + beta b)^2
     half = 0.5 * (saa - sbb)
@@ -142,14 +176,32 @@ def _fit_cross(pts, tangent, nb_pts, dist, other, axis=None):
     alpha = np.where(small, 0.0, alpha)
     beta = np.where(small, 1.0, beta)
     n = alpha[:, None] * u + beta[:, None] * v
-    n /= np.maximum(np.linalg.norm(n, axis=1), 1e-12)[:, None]
+    n /= np.maximum(_row_norm(n), 1e-12)[:, None]
     n[_up(n, axis) < 0] *= -1.0
     has = other.any(axis=1)
     n[~has] = v[~has]  # no other pass near: no cross-slope
     side_pos = (other & (a > 0)).any(axis=1)
     side_neg = (other & (a < 0)).any(axis=1)
     conf = np.where(~has, NO_CROSS, np.where(side_pos & side_neg, CONFIDENT, ONE_SIDED))
-    return n, conf.astype(np.int8), np.where(other, dist, np.inf).min(axis=1)
+    np.copyto(dist, np.inf, where=~other)
+    return n, conf.astype(np.int8), dist.min(axis=1)
+
+
+def _weighted_sums(a, b, dist, other):
+    """Per row, sum w a a, sum w b b and sum w a b with w = 1 / dist^2 on the other
+    passes' neighbours, 0 elsewhere (``a``, ``b``, ``dist``, ``other``: (m, k))."""
+    w = np.maximum(dist, 1e-9)
+    np.multiply(w, w, out=w)
+    np.divide(1.0, w, out=w)
+    np.copyto(w, 0.0, where=~other)
+    wa = w * a
+    term = wa * a
+    saa = term.sum(axis=1)
+    np.multiply(wa, b, out=term)
+    sab = term.sum(axis=1)
+    np.multiply(w, b, out=term)
+    term *= b
+    return saa, term.sum(axis=1), sab
 
 
 def _up(v: np.ndarray, axis: np.ndarray | None) -> np.ndarray:
