@@ -223,13 +223,19 @@ def contacts_from_path(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.
     """Contacts (CC point, normal, R_eff) from the toolpath alone; ``axis`` (m, 3) the
     tool axis per point (None: +Z)."""
     est = path_normals(centers_mm, path_mm, cutting, axis=axis)
-    cc = centers_mm - cutter.corner_radius_mm * est.normal
-    planning_normal = tilt_from_axis(est.normal, np.where(est.confidence == ONE_SIDED,
-                                                          np.radians(ONE_SIDED_TILT_DEG), 0.0),
-                                     axis)
-    return Contacts(cc_mm=cc, normal=est.normal,
-                    r_eff_mm=r_eff_mm(cutter, planning_normal, axis),
-                    cutting=cutting.copy()), est
+    m = centers_mm.shape[0]
+    cc, r_eff = np.empty((m, 3)), np.empty(m)
+
+    def part(a: int) -> None:  # row by row: chunks in threads give the same bits
+        b = min(a + CHUNK, m)
+        normal = est.normal[a:b]
+        cc[a:b] = centers_mm[a:b] - cutter.corner_radius_mm * normal
+        tilt = np.where(est.confidence[a:b] == ONE_SIDED, np.radians(ONE_SIDED_TILT_DEG), 0.0)
+        ax = None if axis is None else axis[a:b]
+        r_eff[a:b] = r_eff_mm(cutter, tilt_from_axis(normal, tilt, ax), ax)
+
+    map_in_threads(part, range(0, m, CHUNK), available_cpus())
+    return Contacts(cc_mm=cc, normal=est.normal, r_eff_mm=r_eff, cutting=cutting.copy()), est
 
 
 def tilt_from_axis(normal: np.ndarray, angle_rad: np.ndarray,

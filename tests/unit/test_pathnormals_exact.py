@@ -14,6 +14,7 @@ from scipy.spatial import cKDTree
 
 import ncopt.pathnormals as pn
 from ncopt.model import Cutter
+from ncopt.tools import r_eff_mm
 
 
 def reference(centers, path, cutting, axis=None, k=pn.K_NEIGHBOURS):
@@ -122,18 +123,20 @@ def test_chunks_and_threads_give_the_reference_bits(monkeypatch, five_axis, chun
     assert_same(got, want)
 
 
-def test_contacts_from_path_plans_with_the_reference_normals():
+@pytest.mark.parametrize("five_axis", [False, True])
+def test_contacts_from_path_plans_with_the_reference_normals(monkeypatch, five_axis):
     rng = np.random.default_rng(4)
     pts, path, cutting = toolpath(rng, jitter=0.05)
-    normal, confidence, _ = reference(pts, path, cutting)
+    axis = tilted_axes(rng, len(pts)) if five_axis else None
+    normal, confidence, _ = reference(pts, path, cutting, axis)
     cutter = Cutter(16.0, 2)
-    contacts, est = pn.contacts_from_path(pts, path, cutting, cutter)
+    monkeypatch.setattr(pn, "CHUNK", 11)
+    contacts, est = pn.contacts_from_path(pts, path, cutting, cutter, axis)
     assert np.array_equal(bits(contacts.normal), bits(normal))
     assert np.array_equal(bits(contacts.cc_mm), bits(pts - cutter.corner_radius_mm * normal))
     tilt = np.where(confidence == pn.ONE_SIDED, np.radians(pn.ONE_SIDED_TILT_DEG), 0.0)
-    from ncopt.tools import r_eff_mm
     assert np.array_equal(bits(contacts.r_eff_mm),
-                          bits(r_eff_mm(cutter, pn.tilt_from_axis(normal, tilt), None)))
+                          bits(r_eff_mm(cutter, pn.tilt_from_axis(normal, tilt, axis), axis)))
 
 
 @given(seed=st.integers(0, 2**32 - 1), rows=st.integers(1, 6),
