@@ -155,3 +155,19 @@ def test_any_toolpath_gives_the_reference_bits(seed, rows, step, jitter, five_ax
     finally:
         pn.CHUNK = saved
     assert_same(got, want)
+
+
+def test_row_norm_has_the_bits_of_numpys_norm():
+    rng = np.random.default_rng(5)
+    v = rng.normal(size=(20000, 3)) * rng.choice([1e-300, 1e-8, 1.0, 1e8, 1e300], (20000, 3))
+    v[::7, 1] = -0.0
+    v[::11] = 0.0
+    with np.errstate(over="ignore", under="ignore"):
+        assert np.array_equal(bits(pn._row_norm(v)), bits(np.linalg.norm(v, axis=1)))
+
+
+@pytest.mark.parametrize("k", [0, 3, 4, 12, 13])
+def test_any_in_row_is_any(k):
+    flags = np.random.default_rng(k).random((500, k)) > 0.93
+    assert np.array_equal(pn._any_in_row(flags), flags.any(axis=1))
+    assert np.array_equal(pn._any_in_row(flags[:, ::-1]), flags.any(axis=1))  # not contiguous
