@@ -116,7 +116,8 @@ def _tangents(pts: np.ndarray, s: np.ndarray) -> np.ndarray:
     np.maximum(seg, 1e-12, out=seg)
     unit /= seg[:, None]
     unit[bad] = 0.0
-    np.nan_to_num(unit, copy=False)
+    if not np.isfinite(seg).all():  # an overflow (inf / inf): as nan_to_num did
+        np.nan_to_num(unit, copy=False)
     # the sum of the unit steps before and after each point, a missing one zero (the
     # ends add 0.0 too: the same bits, signed zeros included)
     t = np.empty((pts.shape[0], 3))
@@ -233,9 +234,9 @@ def _up(v: np.ndarray, axis: np.ndarray | None) -> np.ndarray:
 def _across(axis: np.ndarray) -> np.ndarray:
     """(m, 3) unit vectors perpendicular to each tool axis (+X for +Z)."""
     u = np.cross([0.0, 1.0, 0.0], axis)
-    small = np.linalg.norm(u, axis=1) < 0.5
+    small = _row_norm(u) < 0.5
     u[small] = np.cross(axis[small], [1.0, 0.0, 0.0])
-    return u / np.linalg.norm(u, axis=1)[:, None]
+    return u / _row_norm(u)[:, None]
 
 
 def contacts_from_path(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarray,
@@ -266,14 +267,14 @@ def tilt_from_axis(normal: np.ndarray, angle_rad: np.ndarray,
     if axis is not None:
         c = np.clip(np.einsum("ij,ij->i", normal, axis), -1.0, 1.0)
         side = normal - c[:, None] * axis
-        hn = np.linalg.norm(side, axis=1)
+        hn = _row_norm(side)
         side = np.where(hn[:, None] > 1e-12, side / np.maximum(hn, 1e-12)[:, None],
                         _across(axis))
         polar = np.arccos(c) + angle_rad
         return np.cos(polar)[:, None] * axis + np.sin(polar)[:, None] * side
     polar = np.arccos(np.clip(normal[:, 2], -1.0, 1.0)) + angle_rad
     horiz = normal[:, :2]
-    hn = np.linalg.norm(horiz, axis=1)
+    hn = np.sqrt(horiz[:, 0] * horiz[:, 0] + horiz[:, 1] * horiz[:, 1])  # linalg.norm's bits
     direction = np.where(hn[:, None] > 1e-12, horiz / np.maximum(hn, 1e-12)[:, None], [1.0, 0.0])
     out = np.empty_like(normal)
     out[:, :2] = direction * np.sin(polar)[:, None]
