@@ -95,6 +95,7 @@ HOOKS = (
     ("verification", "ncopt.api:verify"),
     ("masked texts", "ncopt.rewrite:masked"),
     ("summary", "ncopt.api:_summary"),
+    ("lag check (thread)", "ncopt.api:_lag_warnings"),
     ("mesh edge lengths", "ncopt.mesh:mesh_resolution_mm"),
 )
 
@@ -602,7 +603,8 @@ def main(argv=None) -> int:
     wall, pss, summary, sha = run_hooked(args, mpf, stl, rec)
     print_stages(rec)
     unused = [f"{label} ({t})" for label, t in HOOKS
-              if not any(st.target == t for st in rec.stats.values())]
+              if label not in rec.thread_s
+              and not any(st.target == t for st in rec.stats.values())]
     print("hooked, not called: " + (", ".join(unused) or "none"))
     e2e = None if args.no_end_to_end else run_end_to_end(mpf, stl)
     print_targets(wall, rec, pss, summary, e2e, args.profile,
