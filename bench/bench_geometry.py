@@ -3,11 +3,19 @@
     python bench/bench_geometry.py speed     # 1M-triangle mesh, 1M ball centres
     python bench/bench_geometry.py normals   # contact-normal error vs mesh size
     python bench/bench_geometry.py bullnose  # bull-nose clearance vs brute force
+    python bench/bench_geometry.py load [--stl PATH] [--rounds N]  # the mesh thread, step by step
 
 ``speed`` prints seconds for: building a grid mesh, writing and loading it as
 a binary STL, the closest-point BVH, the MeshIndex (tree + normals + sharp edges),
 closest-point queries and normals serial vs thread pool, the full contact search, and the
 peak resident memory of this process and of its pool children.
+
+``load`` times what ``api.rewrite_file``'s mesh thread does, step by step, on an STL
+(default: the 1M-triangle mesh of ``bench/bench_rewrite.py``, generated there if
+missing): read + merge vertices, the fcpw BVH alone, the MeshIndex (BVH, normals,
+sharp edges), the edge lengths; then the closest points of 1M ball centres 8 mm
+above its surface.  Median and minimum over ``--rounds`` of wall and CPU seconds:
+run it on two checkouts, alternating, to compare them on a busy machine.
 
 ``normals`` meshes analytic surfaces at several edge lengths (jittered
 parameter grids, vertices exactly on the surface), puts ball centres at
@@ -366,15 +374,59 @@ def run_egg_crates(n_points: int) -> None:
               f"{np.count_nonzero(mc.contacts.cutting != near)} of {n_points}")
 
 
+def run_load(stl: Path | None, rounds: int, n_points: int) -> None:
+    if stl is None:
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        import bench_rewrite
+
+        _, stl = bench_rewrite.case_files(Path(tempfile.gettempdir()) / "ncopt_bench",
+                                          1_000_000, 1_000_000)
+    mesh = geometry.load_stl(stl)
+    print(f"{stl}: {mesh.n_faces:,} triangles, {mesh.V.shape[0]:,} vertices")
+    rng = np.random.default_rng(0)
+    face = rng.integers(0, mesh.n_faces, n_points)
+    bary = rng.dirichlet(np.ones(3), n_points)
+    index = geometry.MeshIndex(mesh)
+    on = np.einsum("ij,ijk->ik", bary, mesh.V[mesh.F[face]])
+    centres = on + 8.0 * index.face_normal[face]  # a D16 ball's centres
+    del index
+    steps = (("load_stl (read + merge vertices)", lambda: geometry.load_stl(stl)),
+             ("fcpw BVH build alone", lambda: geometry._closest_point_scene(mesh)),
+             ("MeshIndex (BVH + normals + sharp edges)", lambda: geometry.MeshIndex(mesh)),
+             ("mesh_resolution_mm (edge lengths)", lambda: geometry.mesh_resolution_mm(mesh)))
+    times: dict[str, list] = {label: [] for label, _ in steps}
+    for _ in range(rounds):
+        for label, fn in steps:
+            t0, c0 = time.perf_counter(), time.process_time()
+            fn()
+            times[label].append((time.perf_counter() - t0, time.process_time() - c0))
+    index = geometry.MeshIndex(mesh)
+    label = f"closest points of {n_points:,} ball centres"
+    times[label] = []
+    for _ in range(rounds):
+        t0, c0 = time.perf_counter(), time.process_time()
+        index.closest(centres)
+        times[label].append((time.perf_counter() - t0, time.process_time() - c0))
+    print(f"{'':46s} {'wall s median  min':>20s} {'cpu s median  min':>20s}")
+    for label, t in times.items():
+        a = np.array(t)
+        print(f"{label:46s} {np.median(a[:, 0]):10.3f} {a[:, 0].min():7.3f} "
+              f"{np.median(a[:, 1]):12.3f} {a[:, 1].min():7.3f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("what", choices=["speed", "normals", "bullnose"], nargs="?",
+    ap.add_argument("what", choices=["speed", "normals", "bullnose", "load"], nargs="?",
                     default="speed")
     ap.add_argument("--triangles", type=int, default=1_000_000)
     ap.add_argument("--points", type=int, default=1_000_000)
     ap.add_argument("--sizes", type=float, nargs="+", default=[0.25, 0.5, 1.0, 2.0])
+    ap.add_argument("--stl", type=Path, default=None, help="load: the mesh to time")
+    ap.add_argument("--rounds", type=int, default=5, help="load: repetitions")
     args = ap.parse_args()
-    if args.what == "speed":
+    if args.what == "load":
+        run_load(args.stl, args.rounds, args.points)
+    elif args.what == "speed":
         run_speed(args.triangles, args.points)
     elif args.what == "bullnose":
         run_bullnose(min(args.points, 5000))

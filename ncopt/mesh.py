@@ -66,24 +66,70 @@ def mesh_from_triangles(tri_mm: np.ndarray, merge_tol_mm: float = 1e-6) -> Mesh:
     -------
     Mesh
         Shared corners are shared vertices; triangles that collapse are dropped.
+        Vertices in the order of their grid points (x, then y, then z), each at
+        its first corner in the file.
     """
     pts = np.asarray(tri_mm).reshape(-1, 3)
-    if not np.issubdtype(pts.dtype, np.floating):
+    if pts.dtype not in (np.float32, np.float64):  # the same values: compared bit for bit
         pts = pts.astype(np.float64)
-    # column by column, the sorted keys once: 1M triangles peak ~250 MB lower
-    key = np.empty(pts.shape, dtype=np.int64)
+    # An STL repeats each point ~6 times, bit for bit: the rounding and the sort by
+    # grid point run on the distinct points only.
+    order, run, first = _same_bits(pts)
+    by_file = np.argsort(first)  # distinct points in file order: the stable sort below
+    first = first[by_file]       # then keeps the first corner of each grid point first
+    key = np.empty((first.size, 3), dtype=np.int64)
     for c in range(3):
-        key[:, c] = np.round(pts[:, c].astype(np.float64) / merge_tol_mm)
-    order = np.lexsort((key[:, 2], key[:, 1], key[:, 0]))
-    key = key[order]
-    new = np.ones(len(order), dtype=bool)
+        key[:, c] = np.round(pts[first, c].astype(np.float64) / merge_tol_mm)
+    by_key = np.lexsort((key[:, 2], key[:, 1], key[:, 0]))
+    key = key[by_key]
+    new = np.ones(len(by_key), dtype=bool)
     new[1:] = np.any(key[1:] != key[:-1], axis=1)
     del key
-    inverse = np.empty(len(order), dtype=np.int64)
-    inverse[order] = np.cumsum(new) - 1
-    F = inverse.reshape(-1, 3)
+    vertex = np.empty(len(by_key), dtype=np.int64)  # of each distinct point, in file order
+    vertex[by_key] = np.cumsum(new) - 1
+    run_vertex = np.empty_like(vertex)
+    run_vertex[by_file] = vertex
+    del vertex, by_file
+    F = np.empty(pts.shape[0], dtype=np.int64)
+    F[order] = run_vertex[run]
+    F = F.reshape(-1, 3)
+    del order, run, run_vertex
     keep = (F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 2] != F[:, 0])
-    return Mesh(V=pts[order[new]], F=F[keep])
+    return Mesh(V=pts[first[by_key[new]]], F=F[keep])
+
+
+# odd 64-bit multipliers (golden ratio, xxHash primes) mixing a point's 32-bit words
+_MIX = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9,
+                 0x27D4EB2F165667C5, 0xFF51AFD7ED558CCD, 0xC4CEB9FE1A85EC53], dtype=np.uint64)
+
+
+def _same_bits(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rows with the same bytes: ``(order, run, first)``.
+
+    ``order`` sorts the rows by a hash of their bytes; ``run[i]`` numbers the run
+    of equal rows that ``order[i]`` is in, ``first[r]`` is the smallest row of run
+    ``r``.  A run never holds two different rows; rows whose hashes collide may
+    split a run in two (harmless to :func:`mesh_from_triangles`, which merges by
+    grid point afterwards).  The columns are compared one by one (a gather of
+    whole rows is 4x slower).
+    """
+    n = pts.shape[0]
+    if n == 0:
+        return (np.zeros(0, dtype=np.int64),) * 3
+    words = np.ascontiguousarray(pts).view(np.uint32).reshape(n, -1)
+    h = np.zeros(n, dtype=np.uint64)
+    for c in range(words.shape[1]):
+        h ^= words[:, c].astype(np.uint64) * _MIX[c % _MIX.size]
+    order = np.argsort(h)
+    del h
+    new = np.zeros(n, dtype=bool)
+    new[0] = True
+    for c in range(words.shape[1]):
+        col = np.ascontiguousarray(words[:, c])[order]
+        new[1:] |= col[1:] != col[:-1]
+    del col
+    run = np.cumsum(new) - 1
+    return order, run, np.minimum.reduceat(order, np.flatnonzero(new))
 
 
 def _stl_mode(path: Path) -> Mode:
@@ -189,8 +235,13 @@ def mesh_resolution_mm(mesh: Mesh) -> EdgeLengths:
         Over all triangle edges, mm.  Facets of edge ``h`` on a radius ``rho``
         differ by about ``h / rho`` rad; facet normals err by up to half that.
     """
-    P = mesh.V[mesh.F]
-    lengths = np.linalg.norm(P - np.roll(P, -1, axis=1), axis=2).ravel()
+    V, F = mesh.V, mesh.F
+    lengths = np.empty((3, F.shape[0]))  # edge k from corner k to k+1, corner by corner
+    corner = [V[F[:, k]] for k in range(3)]
+    for k in range(3):
+        lengths[k] = np.linalg.norm(corner[k] - corner[(k + 1) % 3], axis=1)
+    del corner
+    lengths = lengths.ravel()
     if lengths.size == 0:
         return EdgeLengths(0.0, 0.0, 0.0)
     med, p95 = np.percentile(lengths, [50.0, 95.0])

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial import ConvexHull
 from stl import Mode
 from stl import mesh as stl_mesh
@@ -313,6 +315,72 @@ def test_mesh_resolution_of_a_unit_grid():
     assert res.median_mm == pytest.approx(1.0)
     assert res.max_mm == pytest.approx(np.sqrt(2.0))
     assert 1.0 <= res.p95_mm <= np.sqrt(2.0)
+
+
+def _merged_by_sorting_all_corners(tri: np.ndarray, tol_mm: float) -> Mesh:
+    """mesh_from_triangles' contract spelled out: a vertex per grid point, in the
+    order of the grid points, at the first corner on it; collapsed faces dropped."""
+    pts = tri.reshape(-1, 3)
+    key = np.round(pts.astype(np.float64) / tol_mm).astype(np.int64)
+    order = np.lexsort((key[:, 2], key[:, 1], key[:, 0]))  # stable: file order on ties
+    new = np.ones(len(order), dtype=bool)
+    new[1:] = np.any(key[order][1:] != key[order][:-1], axis=1)
+    vertex = np.empty(len(order), dtype=np.int64)
+    vertex[order] = np.cumsum(new) - 1
+    F = vertex.reshape(-1, 3)
+    keep = (F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 2] != F[:, 0])
+    return Mesh(pts[order[new]], F[keep])
+
+
+@settings(max_examples=60)
+@given(corner=st.lists(st.integers(0, 7), min_size=0, max_size=60),
+       jitter=st.lists(st.sampled_from([0.0, -0.0, 1e-7, 4e-7, 5e-7, -5e-7]), min_size=3,
+                       max_size=3),
+       pitch=st.sampled_from([1e-7, 5e-7, 1e-6, 1.0]), seed=st.integers(0, 3),
+       dtype=st.sampled_from([np.float32, np.float64]))
+def test_corners_merge_by_grid_point_in_key_order(corner, jitter, pitch, seed, dtype):
+    """Bit-equal corners grouped first, then grid points: the same mesh as sorting
+    every corner, for corners equal, nearly equal, on either side of a grid line
+    and +-0."""
+    base = np.random.default_rng(seed).integers(-3, 3, size=(8, 3)) * pitch
+    n = len(corner) // 3 * 3
+    pts = base[corner[:n]] + np.resize(np.array(jitter), (n, 3)) * (np.arange(n) % 2)[:, None]
+    tri = pts.astype(dtype).reshape(-1, 3, 3)
+    ours, expected = geometry.mesh_from_triangles(tri), _merged_by_sorting_all_corners(tri, 1e-6)
+    assert ours.V.tobytes() == expected.V.tobytes()
+    np.testing.assert_array_equal(ours.F, expected.F)
+
+
+def test_corner_normals_at_sharp_vertices_are_libigls_split_normals():
+    """Only the faces around a sharp vertex go to igl.per_corner_normals: their
+    corners get exactly the normals of the call on the whole mesh."""
+    import igl
+
+    # a roof (ridge at 60 deg: sharp) on a gently curved, smooth skirt
+    mesh = grid_mesh(np.linspace(-4, 4, 17), np.linspace(-3, 3, 7),
+                     lambda x: 2.0 - 1.2 * np.abs(x) + 0.02 * x * x)
+    index = MeshIndex(mesh)
+    whole = igl.per_corner_normals(mesh.V, mesh.F, index.feature_angle_deg).reshape(-1, 3, 3)
+    sharp = np.zeros(mesh.V.shape[0], dtype=bool)
+    sharp[mesh.F[index.feature_edge]] = True
+    assert 0 < sharp.sum() < mesh.V.shape[0]
+    at = sharp[mesh.F]
+    expected = whole[at] / np.linalg.norm(whole[at], axis=1)[:, None]
+    assert index.corner_normal[at].tobytes() == expected.tobytes()
+    smooth = igl.per_vertex_normals(mesh.V, mesh.F, igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_ANGLE)
+    np.testing.assert_allclose(index.corner_normal[~at], smooth[mesh.F][~at], atol=1e-15)
+
+
+def test_unusable_corner_normals_fall_back_to_the_facet():
+    mesh = plane_mesh(30.0)
+    given = np.tile(np.array([0.0, 0.0, 2.0]), (mesh.n_faces, 3, 1))
+    given[0, 0], given[1, 1], given[2, 2] = [np.inf, 0.0, 0.0], np.nan, [0.3, 0.0, 0.0]
+    index = MeshIndex(mesh, corner_normals=given)
+    np.testing.assert_array_equal(index.corner_normal[[0, 1, 2], [0, 1, 2]],
+                                  index.face_normal[[0, 1, 2]])
+    keep = np.ones((mesh.n_faces, 3), dtype=bool)
+    keep[[0, 1, 2], [0, 1, 2]] = False
+    np.testing.assert_array_equal(index.corner_normal[keep], np.tile([0.0, 0.0, 1.0], (keep.sum(), 1)))
 
 
 # ---------------------------------------------------------------- closest points against libigl

@@ -273,3 +273,40 @@ def test_queries_in_spatial_order_give_the_path_order_answers(wave):
     for k, row in enumerate(range(0, len(centers), 37)):
         assert got.face[row] == one_by_one[k][1][0]
         np.testing.assert_array_equal(got.point_mm[row], one_by_one[k][2][0])
+
+
+# ---------------------------------------------------------------- the levels after the first
+
+
+@given(zigzags(), st.sampled_from([0.3, 1.0, 3.0]))
+def test_later_levels_judging_only_around_new_samples_split_the_same(wave, drawn, coarse_mm):
+    """Each level after the first judges the intervals around its new samples only:
+    the same samples, bit for bit, as judging every interval at every level."""
+    import ncopt.sampling as sampling
+
+    text, _ = drawn
+    case = Case(text, BALL10)
+    ref = Refinement(coarse_mm=coarse_mm, r_floor_mm=case.floor_mm())
+    args = (case.tp.xyz_mm + [0, 0, 5.0], case.sel, _query(wave, BALL10), ref)
+    got = adaptive_samples(*args)
+    around = sampling._around
+    try:
+        sampling._around = lambda new, n_intervals: None  # every interval, every level
+        every = adaptive_samples(*args)
+    finally:
+        sampling._around = around
+    for a, b in zip((got.point, got.frac, got.queried, *got.probe.columns()),
+                    (every.point, every.frac, every.queried, *every.probe.columns())):
+        assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
+
+
+@given(st.integers(0, 30), st.lists(st.integers(0, 30), max_size=80, unique=True),
+       st.sampled_from([(), (3,)]))
+def test_inserted_rows_land_as_numpy_insert_puts_them(n, at, tail):
+    a = np.arange(n * (3 if tail else 1), dtype=float).reshape(n, *tail)
+    at = np.array(sorted(i for i in at if i <= n), dtype=np.int64)
+    rows = -1.0 - np.arange(at.size * (3 if tail else 1), dtype=float).reshape(at.size, *tail)
+    import ncopt.sampling as sampling
+
+    np.testing.assert_array_equal(sampling._insert_rows(a, at, rows),
+                                  np.insert(a, at, rows, axis=0))
