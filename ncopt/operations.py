@@ -30,12 +30,14 @@ rapids still sees its neighbouring passes).
 
 from __future__ import annotations
 
+import functools
 import re
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .interp import row_norms
 from .model import Cutter, LineKind, Motion, Program, Toolpath
 
 FINISH_3D, FINISH_ZLEVEL = "3D surface finishing", "Z-level finishing"
@@ -227,7 +229,7 @@ def _samples(tp: Toolpath, points: np.ndarray, spacing_mm: float) -> _Samples:
     elif tp.tool_axis is not None and points.size:
         turning = np.any(np.abs(tp.tool_axis[points][:, :2]) > 1e-9, axis=1)
     d = b - a
-    length = np.linalg.norm(d, axis=1)
+    length = row_norms(d)
     cum = np.concatenate(([0.0], np.cumsum(length)))
     total = float(cum[-1])
     spacing = max(spacing_mm, total / MAX_SAMPLES, 1e-3)
@@ -288,7 +290,7 @@ def _retraced(tp: Toolpath, geo: np.ndarray, sm: _Samples, radius_mm: float) -> 
     frame = _tool_frame(tp, geo)  # 3+2: the samples are in the tool's frame, so the moves too
     if frame is not None:
         a, b = a @ frame.T, b @ frame.T
-    length = np.linalg.norm(b - a, axis=1)
+    length = row_norms(b - a)
     s_end = np.cumsum(length)
     stride = max(1, -(-flat.size // RETRACE_SAMPLES))  # every stride-th sample judged
     idx = flat[::stride]
@@ -382,12 +384,16 @@ def _weighted_median(x: np.ndarray, w: np.ndarray) -> float:
 
 def _kind_of(sm: _Samples, sel: np.ndarray, nb: tuple, lv: _Levels,
              diameter_mm: float) -> tuple[str, float, float, str]:
-    """Kind of the samples ``sel`` of one part: (kind, step mm, stepover mm, why)."""
+    """Kind of the samples ``sel`` of one part: (kind, step mm, stepover mm, why).
+
+    ``nb``: (neighbour pass per sample, a callable giving the retraced samples): the
+    retrace test (a k-d tree over every move of the operation) runs only for the
+    constant-Z parts that get that far, not for a 3D surface finish."""
     w = sm.weight_mm[sel]
     total = float(w.sum())
     if total <= 0:
         return NO_CUT, np.nan, np.nan, "no feed move"
-    nb, vertical = nb
+    nb, retraced = nb
     sloped = float(w[sm.sloped[sel]].sum()) / total
     if sloped >= SLOPED_SHARE:
         share = float(w[nb[sel]].sum()) / total
@@ -410,7 +416,8 @@ def _kind_of(sm: _Samples, sel: np.ndarray, nb: tuple, lv: _Levels,
     if above < 0.2:
         return TWO_D, np.nan, np.nan, "one Z level (2D contour, facing, engraving or 2D pocket)"
     near = flat & nb
-    retrace = float(sm.weight_mm[near & vertical].sum()) / max(float(sm.weight_mm[near].sum()), 1e-12)
+    retrace = (float(sm.weight_mm[near & retraced()].sum())
+               / max(float(sm.weight_mm[near].sum()), 1e-12))
     if retrace >= RETRACE_SHARE:
         return TWO_D, step, np.nan, (
             f"the same contour at several depths {step:.3g} mm apart (vertical walls: a 2D "
@@ -456,17 +463,19 @@ def cutting_feed(tp: Toolpath, feed: np.ndarray) -> float:
 
 
 def _parts(tp: Toolpath, pts: np.ndarray, feed: np.ndarray, diameter_mm: float) -> list[_Part]:
-    """Cut the operation's points at each rapid that follows a cut; classify each chunk
-    with the whole operation as context; merge neighbours of the same kind.  Geometry
-    comes from the moves near the typical feed (a helical ramp at a reduced feed is no
-    surface; an ncopt output, whose F follows S, keeps most of its moves)."""
-    is_feed = np.isin(pts, feed)
+    """Cut the operation's points (``pts``: consecutive) at each rapid that follows a cut;
+    classify each chunk with the whole operation as context; merge neighbours of the
+    same kind.  Geometry comes from the moves near the typical feed (a helical ramp at a
+    reduced feed is no surface; an ncopt output, whose F follows S, keeps most of its
+    moves)."""
+    is_feed = np.zeros(pts.shape, dtype=bool)
+    is_feed[feed - pts[0]] = True  # pts: consecutive points; feed: some of them
     cf = np.cumsum(is_feed)
     r = np.flatnonzero(tp.motion[pts] == Motion.RAPID)
     prev = np.concatenate(([0], cf[r[:-1]])) if r.size else r
     starts = r[(cf[r] - prev) > 0] if r.size else r
     d = tp.xyz_mm[feed] - tp.xyz_mm[feed - 1]
-    plunge = np.abs(d[:, 2]) > 0.9 * np.maximum(np.linalg.norm(d, axis=1), 1e-12)
+    plunge = np.abs(d[:, 2]) > 0.9 * np.maximum(row_norms(d), 1e-12)
     f = tp.feed_mm_min[feed]
     typical = _weighted_median(f[~plunge], tp.seg_len_mm[feed][~plunge])  # plunges aside
     at_feed = f >= SLOW_FEED * typical
@@ -476,9 +485,9 @@ def _parts(tp: Toolpath, pts: np.ndarray, feed: np.ndarray, diameter_mm: float) 
     radius = 0.5 * diameter_mm
     sm = _samples(tp, geo, 0.5 * radius)
     nb = (_neighbour_pass(sm, NEIGHBOUR_D * diameter_mm),
-          _retraced(tp, geo, sm, NEIGHBOUR_D * diameter_mm))
+          functools.cache(lambda: _retraced(tp, geo, sm, NEIGHBOUR_D * diameter_mm)))
     lv = _levels(sm, max(0.5 * radius, 0.05))
-    chunk_of_sample = np.searchsorted(starts, np.searchsorted(pts, sm.point), side="right")
+    chunk_of_sample = np.searchsorted(starts, sm.point - pts[0], side="right")
     groups = _groups(starts, chunk_of_sample, sm.weight_mm, MIN_PART_D * diameter_mm)
     parts: list[_Part] = []
     said_mm: list[float] = []  # length of the piece whose reason each part gives

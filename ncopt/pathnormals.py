@@ -33,7 +33,7 @@ from .threads import available_cpus, map_in_threads
 from .tools import r_eff_mm
 
 K_NEIGHBOURS = 12  # enough for 4-5 points per pass on each side at CAM-typical spacings
-CHUNK = 131072
+CHUNK = 16384  # points a chunk: its (chunk, k, 3) temporaries stay in a core's cache
 OTHER_PASS_RATIO = 3.0  # path distance > ratio * straight distance: another pass
 CONFIDENT, ONE_SIDED, NO_CROSS = 2, 1, 0
 # A one-sided fit on a curved surface tilts the normal by about half the stepover
@@ -70,30 +70,35 @@ def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarra
     axis : (m, 3) unit tool axes (5 axes), or None for +Z
     """
     m = centers_mm.shape[0]
-    normal = np.tile([0.0, 0.0, 1.0], (m, 1)) if axis is None else axis.copy()
+    if axis is None:
+        normal = np.zeros((m, 3))
+        normal[:, 2] = 1.0
+    else:
+        normal = axis.copy()
     confidence = np.zeros(m, dtype=np.int8)
     idx = np.flatnonzero(cutting)
     if idx.size < 2:
         return PathNormals(normal, confidence, float("nan"))
-    pts, s = centers_mm[idx], path_mm[idx]
-    tangent = _tangents(pts, s)
-    tree = cKDTree(pts)
+    pts, s = np.take(centers_mm, idx, axis=0), np.take(path_mm, idx)
+    threads = available_cpus() if workers == -1 else workers
+    # the tree's build releases the GIL: the tangents are computed meanwhile
+    tree, tangent = map_in_threads(lambda job: job(), (lambda: cKDTree(pts),
+                                                       lambda: _tangents(pts, s)), threads)
     kk = min(k + 1, idx.size)
 
     def chunk(a: int) -> np.ndarray:  # bounded temporaries: (chunk, k, 3) at a time
         b = min(a + CHUNK, idx.size)
         dist, nb = tree.query(pts[a:b], k=kk, workers=1)
         dist, nb = np.atleast_2d(dist)[:, 1:], np.atleast_2d(nb)[:, 1:]
-        other = np.abs(s[nb] - s[a:b, None]) > OTHER_PASS_RATIO * dist + 1e-9
         up = None if axis is None else axis[idx[a:b]]
-        n, conf, closest = _fit_cross(pts[a:b], tangent[a:b], pts[nb], dist, other, up)
+        n, conf, closest = _fit_cross(pts[a:b], tangent[a:b], pts, nb, dist,
+                                      _other_pass(s, a, nb, dist), up)
         normal[idx[a:b]] = n
         confidence[idx[a:b]] = conf
         return closest
 
     # each thread queries and fits its own chunks: scipy's query and numpy's loops
     # release the GIL, so the fit of one chunk overlaps the query of the next
-    threads = available_cpus() if workers == -1 else workers
     near = np.concatenate(map_in_threads(chunk, range(0, idx.size, CHUNK), threads))
     stepover = float(np.median(near[np.isfinite(near)])) if np.isfinite(near).any() else float("nan")
     return PathNormals(normal, confidence, stepover)
@@ -101,37 +106,69 @@ def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarra
 
 def _tangents(pts: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Unit along-path tangents: central differences, one-sided at breaks."""
-    d = np.diff(pts, axis=0)
-    seg = np.linalg.norm(d, axis=1)
-    jump = np.abs(np.diff(s) - seg) > 1e-6  # not consecutive on the path
-    unit = d / np.maximum(seg, 1e-12)[:, None]
-    unit[jump | (seg < 1e-9)] = np.nan
-    before = np.vstack((unit[:1] * np.nan, unit))
-    after = np.vstack((unit, unit[:1] * np.nan))
-    t = np.nan_to_num(before) + np.nan_to_num(after)
-    norm = np.linalg.norm(t, axis=1)
+    unit = np.diff(pts, axis=0)
+    seg = _row_norm(unit)
+    jump = np.diff(s)
+    jump -= seg
+    np.abs(jump, out=jump)
+    bad = jump > 1e-6  # not consecutive on the path
+    bad |= seg < 1e-9
+    np.maximum(seg, 1e-12, out=seg)
+    unit /= seg[:, None]
+    unit[bad] = 0.0
+    if not np.isfinite(seg).all():  # an overflow (inf / inf): as nan_to_num did
+        np.nan_to_num(unit, copy=False)
+    # the sum of the unit steps before and after each point, a missing one zero (the
+    # ends add 0.0 too: the same bits, signed zeros included)
+    t = np.empty((pts.shape[0], 3))
+    t[0] = 0.0
+    t[1:] = unit
+    t[:-1] += unit
+    t[-1] += 0.0
+    norm = _row_norm(t)
     t /= np.maximum(norm, 1e-12)[:, None]
     t[norm < 1e-9] = [1.0, 0.0, 0.0]
     return t
 
 
-def _fit_cross(pts, tangent, nb_pts, dist, other, axis=None):
-    """Normal perpendicular to the tangent fitting the other-pass neighbours; also the
-    distance to the nearest other-pass point (inf where there is none).  ``axis``:
-    (m, 3) tool axes, None for +Z."""
+def _row_norm(v: np.ndarray) -> np.ndarray:
+    """(m,) Euclidean norms of the rows of ``v`` (m, 3): the bits of
+    np.linalg.norm(v, axis=1) (its add.reduce sums three terms left to right), a
+    fifth of its time (a reduction over rows of three calls its loop per row)."""
+    sq = v * v
+    out = sq[:, 0] + sq[:, 1]
+    out += sq[:, 2]
+    return np.sqrt(out, out=out)
+
+
+def _other_pass(s: np.ndarray, a: int, nb: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """(m, k) bool: neighbour ``nb`` of point ``a + row`` lies on another pass (much
+    farther along the path, ``s``, than in a straight line, ``dist``)."""
+    along = np.take(s, nb)
+    along -= s[a:a + nb.shape[0], None]
+    np.abs(along, out=along)
+    limit = dist * OTHER_PASS_RATIO
+    limit += 1e-9
+    return np.greater(along, limit, out=np.empty(nb.shape, bool))
+
+
+def _fit_cross(pts, tangent, all_pts, nb, dist, other, axis=None):
+    """Normal perpendicular to the tangent fitting the other-pass neighbours
+    ``all_pts[nb]``; also the distance to the nearest other-pass point (inf where
+    there is none).  ``axis``: (m, 3) tool axes, None for +Z."""
     up = np.array([0.0, 0.0, 1.0]) if axis is None else axis
     u = np.cross(tangent, up)  # horizontal, across the pass
-    un = np.linalg.norm(u, axis=1)
-    vertical = un < 1e-6  # a plunge: any horizontal direction will do
+    vertical = _row_norm(u) < 1e-6  # a plunge: any horizontal direction will do
     u[vertical] = [1.0, 0.0, 0.0] if axis is None else _across(axis[vertical])
-    u /= np.maximum(np.linalg.norm(u, axis=1), 1e-12)[:, None]
+    u /= np.maximum(_row_norm(u), 1e-12)[:, None]
     v = np.cross(u, tangent)  # perpendicular to the tangent, in its vertical plane
     v[_up(v, axis) < 0] *= -1.0
-    off = nb_pts - pts[:, None, :]  # (m, k, 3)
+    off = np.take(all_pts, nb, axis=0)  # (m, k, 3); take: a third of all_pts[nb]'s time
+    off -= pts[:, None, :]
     a = np.einsum("mkj,mj->mk", off, u)
     b = np.einsum("mkj,mj->mk", off, v)
-    w = np.where(other, 1.0 / np.maximum(dist, 1e-9) ** 2, 0.0)
-    saa, sbb, sab = (w * a * a).sum(1), (w * b * b).sum(1), (w * a * b).sum(1)
+    del off
+    saa, sbb, sab = _weighted_sums(a, b, dist, other)
     # smallest eigenvector of [[saa, sab], [sab, sbb]]: the direction (alpha, beta)
     # minimising sum w (alpha a + beta b)^2
     half = 0.5 * (saa - sbb)
@@ -142,14 +179,51 @@ def _fit_cross(pts, tangent, nb_pts, dist, other, axis=None):
     alpha = np.where(small, 0.0, alpha)
     beta = np.where(small, 1.0, beta)
     n = alpha[:, None] * u + beta[:, None] * v
-    n /= np.maximum(np.linalg.norm(n, axis=1), 1e-12)[:, None]
+    n /= np.maximum(_row_norm(n), 1e-12)[:, None]
     n[_up(n, axis) < 0] *= -1.0
-    has = other.any(axis=1)
+    has = _any_in_row(other)
     n[~has] = v[~has]  # no other pass near: no cross-slope
-    side_pos = (other & (a > 0)).any(axis=1)
-    side_neg = (other & (a < 0)).any(axis=1)
-    conf = np.where(~has, NO_CROSS, np.where(side_pos & side_neg, CONFIDENT, ONE_SIDED))
-    return n, conf.astype(np.int8), np.where(other, dist, np.inf).min(axis=1)
+    side = np.greater(a, 0.0, out=np.empty(a.shape, bool))
+    side &= other
+    both = _any_in_row(side)
+    np.less(a, 0.0, out=side)
+    side &= other
+    both &= _any_in_row(side)
+    conf = np.where(~has, NO_CROSS, np.where(both, CONFIDENT, ONE_SIDED))
+    # the query sorts the neighbours by distance: the first other-pass one is the nearest
+    first = np.argmax(other, axis=1)
+    closest = np.where(has, np.take_along_axis(dist, first[:, None], axis=1)[:, 0], np.inf)
+    return n, conf.astype(np.int8), closest
+
+
+def _any_in_row(flags: np.ndarray) -> np.ndarray:
+    """(m,) flags.any(axis=1) for C-contiguous (m, k) bool: rows of k = 4 j bytes are
+    read as j 32-bit words (numpy's any over short rows calls its loop per row)."""
+    k = flags.shape[1]
+    if k == 0 or k % 4 or not flags.flags.c_contiguous:
+        return flags.any(axis=1)
+    words = flags.view(np.uint32)
+    acc = words[:, 0].copy()
+    for j in range(1, k // 4):
+        acc |= words[:, j]
+    return acc != 0
+
+
+def _weighted_sums(a, b, dist, other):
+    """Per row, sum w a a, sum w b b and sum w a b with w = 1 / dist^2 on the other
+    passes' neighbours, 0 elsewhere (``a``, ``b``, ``dist``, ``other``: (m, k))."""
+    w = np.maximum(dist, 1e-9)
+    np.multiply(w, w, out=w)
+    np.divide(1.0, w, out=w)
+    np.multiply(w, other, out=w)  # w is finite and >= 0 (the tree takes finite points only)
+    wa = w * a
+    term = wa * a
+    saa = term.sum(axis=1)
+    np.multiply(wa, b, out=term)
+    sab = term.sum(axis=1)
+    np.multiply(w, b, out=term)
+    term *= b
+    return saa, term.sum(axis=1), sab
 
 
 def _up(v: np.ndarray, axis: np.ndarray | None) -> np.ndarray:
@@ -160,9 +234,9 @@ def _up(v: np.ndarray, axis: np.ndarray | None) -> np.ndarray:
 def _across(axis: np.ndarray) -> np.ndarray:
     """(m, 3) unit vectors perpendicular to each tool axis (+X for +Z)."""
     u = np.cross([0.0, 1.0, 0.0], axis)
-    small = np.linalg.norm(u, axis=1) < 0.5
+    small = _row_norm(u) < 0.5
     u[small] = np.cross(axis[small], [1.0, 0.0, 0.0])
-    return u / np.linalg.norm(u, axis=1)[:, None]
+    return u / _row_norm(u)[:, None]
 
 
 def contacts_from_path(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarray,
@@ -171,13 +245,19 @@ def contacts_from_path(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.
     """Contacts (CC point, normal, R_eff) from the toolpath alone; ``axis`` (m, 3) the
     tool axis per point (None: +Z)."""
     est = path_normals(centers_mm, path_mm, cutting, axis=axis)
-    cc = centers_mm - cutter.corner_radius_mm * est.normal
-    planning_normal = tilt_from_axis(est.normal, np.where(est.confidence == ONE_SIDED,
-                                                          np.radians(ONE_SIDED_TILT_DEG), 0.0),
-                                     axis)
-    return Contacts(cc_mm=cc, normal=est.normal,
-                    r_eff_mm=r_eff_mm(cutter, planning_normal, axis),
-                    cutting=cutting.copy()), est
+    m = centers_mm.shape[0]
+    cc, r_eff = np.empty((m, 3)), np.empty(m)
+
+    def part(a: int) -> None:  # row by row: chunks in threads give the same bits
+        b = min(a + CHUNK, m)
+        normal = est.normal[a:b]
+        cc[a:b] = centers_mm[a:b] - cutter.corner_radius_mm * normal
+        tilt = np.where(est.confidence[a:b] == ONE_SIDED, np.radians(ONE_SIDED_TILT_DEG), 0.0)
+        ax = None if axis is None else axis[a:b]
+        r_eff[a:b] = r_eff_mm(cutter, tilt_from_axis(normal, tilt, ax), ax)
+
+    map_in_threads(part, range(0, m, CHUNK), available_cpus())
+    return Contacts(cc_mm=cc, normal=est.normal, r_eff_mm=r_eff, cutting=cutting.copy()), est
 
 
 def tilt_from_axis(normal: np.ndarray, angle_rad: np.ndarray,
@@ -187,14 +267,14 @@ def tilt_from_axis(normal: np.ndarray, angle_rad: np.ndarray,
     if axis is not None:
         c = np.clip(np.einsum("ij,ij->i", normal, axis), -1.0, 1.0)
         side = normal - c[:, None] * axis
-        hn = np.linalg.norm(side, axis=1)
+        hn = _row_norm(side)
         side = np.where(hn[:, None] > 1e-12, side / np.maximum(hn, 1e-12)[:, None],
                         _across(axis))
         polar = np.arccos(c) + angle_rad
         return np.cos(polar)[:, None] * axis + np.sin(polar)[:, None] * side
     polar = np.arccos(np.clip(normal[:, 2], -1.0, 1.0)) + angle_rad
     horiz = normal[:, :2]
-    hn = np.linalg.norm(horiz, axis=1)
+    hn = np.sqrt(horiz[:, 0] * horiz[:, 0] + horiz[:, 1] * horiz[:, 1])  # linalg.norm's bits
     direction = np.where(hn[:, None] > 1e-12, horiz / np.maximum(hn, 1e-12)[:, None], [1.0, 0.0])
     out = np.empty_like(normal)
     out[:, :2] = direction * np.sin(polar)[:, None]

@@ -366,22 +366,26 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
     falling from a higher S the program keeps (the fall is then as fast as the
     spindle allows, and F is capped by the feed limit anyway).
     """
-    s_plan = _snapped(profile.s_rpm).tolist()
-    inc_s2, inc_s = (a.tolist() for a in incs)
-    cutting = (blocks.cutting & blocks.planned).tolist()
-    fixed = (~blocks.planned).tolist()
+    # the arrays are read and written through memoryviews: their items are Python floats
+    # and bools as with tolist(), without building lists of 1M objects first (and the
+    # outputs without np.array() of such lists): 0.2 of the 0.85 s at 1M blocks
+    s_plan = _items(_snapped(profile.s_rpm), np.float64)
+    inc_s2, inc_s = (_items(a, np.float64) for a in incs)
+    cutting = _items(blocks.cutting & blocks.planned, bool)
+    fixed = _items(~blocks.planned, bool)
     fixed_rpm = blocks.fixed_rpm  # read only in fixed blocks: no list of 1M floats
-    starts = blocks.spindle_start.tolist()
+    starts = _items(blocks.spindle_start, bool)
     step = opts.min_rpm_step
     lo_int = math.ceil(s_lo)
     # the spindle's lowest speed wins over the feed-limited top (F is capped there anyway)
     top = max(math.floor(s_hi), lo_int) if math.isfinite(s_hi) else math.inf
     n = len(s_plan)
-    cmd_out, low_out, high_out = [0.0] * n, [0.0] * n, [0.0] * n
+    out = np.zeros(n), np.zeros(n), np.zeros(n)  # S commanded, lowest and highest real speed
+    cmd_out, low_out, high_out = (memoryview(a) for a in out)
     interval_s = opts.min_s_interval_ms / 1000.0
     timed = interval_s > 0  # else the clock since the last S word never matters
-    length, time_free = ((blocks.length_mm.tolist(), blocks.time_s.tolist()) if timed
-                         else (None, None))
+    length, time_free = ((_items(blocks.length_mm, np.float64),
+                          _items(blocks.time_s, np.float64)) if timed else (None, None))
     floor, sqrt, inf = math.floor, math.sqrt, math.inf
     band = not math.isinf(ratio)
     cur = real = None
@@ -497,7 +501,12 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
             lowest = start if start < real else real
             since_s += (60.0 * length[b] / (feed_per_rev_mm * max(lowest, 1.0))
                         if cutting[b] and feed_per_rev_mm > 0 else time_free[b])
-    return Emitted(np.array(cmd_out), np.array(low_out), np.array(high_out), close)
+    return Emitted(*out, close)
+
+
+def _items(a: np.ndarray, dtype) -> memoryview:
+    """A read-only view of ``a``'s items as Python objects (floats, bools), like a list."""
+    return memoryview(np.ascontiguousarray(a, dtype=dtype)).toreadonly()
 
 
 def _snapped(rpm: np.ndarray) -> np.ndarray:

@@ -23,7 +23,7 @@ from . import operations, passes, planner, regions
 from .controls import ANYWHERE, BETWEEN_PASSES
 from .contacts import Method, Sampled, contacts_for
 from .errors import MeshError, NothingToPlan, PlanningError, UsageError
-from .interp import MM_PER_INCH
+from .interp import MM_PER_INCH, row_norms
 from .model import Cutter, CuttingData, Machine, Motion, PlanOptions, Program, Toolpath
 from .operations import CANNED, CLEARING, NO_CUT, ROUGH_LEVELS, Operation
 from .regions import Scope
@@ -124,7 +124,7 @@ def _surface_moves(tp: Toolpath, selected: np.ndarray) -> np.ndarray:
     """(n,) bool: the selected moves that follow the surface: not plunges or retracts
     (within 25 deg of the axis), not at a reduced feed (entries, links)."""
     d = np.diff(tp.xyz_mm, axis=0, prepend=tp.xyz_mm[:1])
-    length = np.linalg.norm(d, axis=1)
+    length = row_norms(d)
     across = np.abs(d[:, 2]) <= 0.9 * np.maximum(length, 1e-12)
     out = selected & across
     if out.any():
@@ -200,8 +200,9 @@ def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, sour
         running=base.running[win], k_limited=cutting)
     feed = tp.feed_mm_min[fp]
     d = tp.xyz_mm[fp] - tp.xyz_mm[np.maximum(fp - 1, 0)]
-    plunge = -d[:, 2] > PLUNGE * np.maximum(np.linalg.norm(d, axis=1), 1e-12)
-    vertical = np.abs(d[:, 2]) > 0.9 * np.maximum(np.linalg.norm(d, axis=1), 1e-12)
+    length = np.maximum(row_norms(d), 1e-12)
+    plunge = -d[:, 2] > PLUNGE * length
+    vertical = np.abs(d[:, 2]) > 0.9 * length
     match = FEED_MATCH if tp.inverse_time is None else np.where(
         tp.inverse_time[fp], FEED_MATCH_G93 * np.abs(feed), FEED_MATCH)
     s_ref, off_feed, f0, s0 = _feed_intent(blocks, feed, tp.spindle_rpm[fp], mine & ~vertical,

@@ -459,3 +459,25 @@ def test_json_summary_and_batch_report_list_every_operation(tmp_path):
     (entry,) = json.loads(report.read_text())
     assert [tuple(o[:2]) for o in entry["operations"]] == [("PARALLEL1", True), ("DRILL1", False)]
     assert entry["summary"]["cut_time_before_min"] == pytest.approx(data["cut_time_before_min"])
+
+
+def levels(name: str, radius_mm, depths) -> list[str]:
+    """A circle at each depth (mm), 0.5 mm apart; ``radius_mm(z)`` its radius there."""
+    out = ["", f"({name})", "T1 M6", "S5000 M3", "G0 X15. Y0.", "Z15."]
+    for z in depths:
+        r = radius_mm(z)
+        out.append(f"G1 X{r:.3f} Y0. Z{z:.3f} F200")
+        out += [f"X{r * np.cos(a):.3f} Y{r * np.sin(a):.3f} F800"
+                for a in np.linspace(0.0, 2 * np.pi, 120)[1:]]
+    return out + ["G0 Z15."]
+
+
+@pytest.mark.parametrize("radius, kind, why", [
+    (lambda z: 15.0, TWO_D, "the same contour at several depths"),  # a wall: side cutting
+    (lambda z: 15.0 + 2.0 * z, FINISH_ZLEVEL, "constant-Z passes"),  # a cone: Z-level finish
+])
+def test_constant_z_levels_close_together_are_a_wall_or_a_z_level_finish(radius, kind, why):
+    text = program(levels("LEVELS", radius, np.arange(0.0, -4.0, -0.5)), tools=[BALL1])
+    prog = parse_text(text)
+    ops = [o for o in find(prog, interpret(prog), {1: 6.0}) if o.kind != "no cut"]
+    assert [o.kind for o in ops] == [kind] and why in ops[0].reason, ops

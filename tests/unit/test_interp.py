@@ -6,9 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from ncopt.errors import NcoptError
-from ncopt.interp import StartState, interpret
+from ncopt.interp import StartState, ffill, interpret
 from ncopt.model import Motion
 from ncopt.parse import parse_text
 
@@ -279,3 +281,32 @@ def test_errors_are_located(text, line):
     assert (err.path, err.line) == ("t.nc", line)
     assert str(err).startswith(f"t.nc:{line}:")
     assert "; " in err.message
+
+
+@given(st.lists(st.one_of(st.none(), st.floats(allow_nan=False)), max_size=40),
+       st.sampled_from([math.nan, 0.0, -1.0]))
+def test_ffill_carries_the_last_value_forward(items, initial):
+    values = np.array([math.nan if v is None else v for v in items], dtype=np.float64)
+    expected, last = [], initial
+    for v in values.tolist():
+        last = last if math.isnan(v) else v
+        expected.append(last)
+    out = ffill(values, initial)
+    assert out.dtype == np.float64 and out is not values
+    assert np.array_equal(out, np.array(expected, dtype=np.float64), equal_nan=True)
+
+
+@pytest.mark.parametrize("body, line", [
+    (["G0 X0 Y0 Z5", "G1 X1 F100", "G0 G1 X2", "G20 G21 X3"], 5),  # the first such line
+    (["G0 X0 Y0 Z5", "G17 G18 X1 F100"], 4),
+    (["G0 X0 Y0 Z5", "M30", "G0 G1 X2"], None),  # after the program end: never run
+])
+def test_two_g_codes_of_one_modal_group_on_an_executed_line_are_refused(body, line):
+    prog = parse_text("\n".join(["%", "G21 G90"] + body + ["M30", "%"]) + "\n")
+    if line is None:
+        interpret(prog)
+        return
+    with pytest.raises(NcoptError) as info:
+        interpret(prog)
+    assert info.value.line == line
+    assert "two G codes from the same modal group on one line" in info.value.message

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 from stl import mesh as stl_mesh
 
 from ncopt.api import Job, rewrite_file, rewrite_text
@@ -24,7 +26,8 @@ from ncopt.geometry import MeshIndex, load_stl
 from ncopt.interp import interpret
 from ncopt.model import Cutter, CuttingData, Machine, PlanOptions
 from ncopt.parse import parse_text
-from ncopt.simulate import simulate_file, simulate_program
+from ncopt import simulate
+from ncopt.simulate import _run_start_speeds, simulate_file, simulate_program
 
 ROOT = Path(__file__).resolve().parents[2]
 BALL16 = Cutter(16, 2)
@@ -390,3 +393,29 @@ def test_mesh_free_simulation_estimates_each_operation_from_its_own_moves():
     inner = mine_a & np.isfinite(s_alone.vc_m_min) & s_alone.cutting
     assert np.median(s_alone.d_eff_mm[inner]) == pytest.approx(2 * R * math.sin(math.radians(20)),
                                                                rel=0.02)
+
+
+_RPM = st.one_of(st.sampled_from([0.0, 1000.0, 1500.0, 12000.0]),
+                 st.floats(0.0, 20000.0, allow_nan=False))
+_REACH = st.one_of(st.sampled_from([0.0, 500.0, math.inf]), st.floats(0.0, 5000.0))
+
+
+@given(st.lists(st.tuples(_RPM, st.booleans(), _REACH), max_size=40),
+       st.sampled_from([(200, 3), (1, 3), (2, 3), (200, 1)]))
+def test_run_start_speeds_are_the_run_by_run_ramp(runs, limits):
+    """Each run starts where the one before left the spindle (ramping toward its command
+    by at most its reach, never past it), or at its command where it starts the spindle;
+    the same where the rounds run out and the rest goes run by run."""
+    t = np.array([r[0] for r in runs], dtype=np.float64)
+    s = np.array([r[1] for r in runs], dtype=bool)
+    reach = np.array([r[2] for r in runs], dtype=np.float64)
+    w, expected = 0.0, []
+    for target, starts, d in runs:
+        w = target if starts else w
+        expected.append(w)
+        w = min(w + d, target) if w < target else max(w - d, target)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(simulate, "RUN_ROUNDS", limits[0])
+        mp.setattr(simulate, "RUN_WORK", limits[1])
+        got = _run_start_speeds(t, s, reach)
+    assert np.array_equal(got, np.array(expected, dtype=np.float64))
