@@ -30,6 +30,7 @@ from ncopt.parse import parse_text
 from ncopt.interp import interpret
 from ncopt.errors import NothingToPlan
 from ncopt.model import Cutter, Machine, Motion
+from ncopt.plans import PLAUSIBLE_F_MM_MIN, PLAUSIBLE_FZ_MM, PLAUSIBLE_S_RPM
 
 from judge import RS274, canon
 
@@ -243,6 +244,10 @@ FOUND = {
     # rewritten: F60.1 stays in force where ncopt planned F60
     "f-finer-than-style": "G21 G90 G17\nS2000 M3\nG0 X0 Y0 Z0\nG1 Z0 F60\nG3 I1\n"
                           "F60.1\nG1 X1\nM5\nM30\n",
+    # F157.5 in/min at S2000 with 2 teeth is fz 1.0001 mm: refused as implausible cutting
+    # data (a unit slip), which the judge took for "no cut to plan"
+    "implausible-fz": "G20 G90 G17\nS2000 M3\nG0 X0 Y0 Z0\nG91 G1 X0.0004 F157.5000\n"
+                      "G1 X0.5\nM5\nM30\n",
 }
 
 
@@ -262,10 +267,17 @@ def judge_rewrite(text: str) -> None:
     off) is written nowhere: nothing to judge but that it has no such cut."""
     try:
         result = rewrite_text(text, JOB, "gen.ngc")
-    except NothingToPlan:
+    except NothingToPlan as exc:
         tp = interpret(parse_text(text, "gen.ngc"))
         feed = np.isin(tp.motion, [Motion.LINEAR, Motion.ARC_CW, Motion.ARC_CCW])
-        assert not np.any(tp.seg_len_mm[feed & tp.known & tp.spindle_on] > 1e-9)
+        cutting = feed & tp.known & tp.spindle_on & (tp.seg_len_mm > 1e-9)
+        if any(op.reason.startswith("implausible cutting data") for op in exc.operations):
+            # the program's own S and F are a unit or parameter slip ncopt must not scale
+            f, s = tp.feed_mm_min[cutting], tp.spindle_rpm[cutting]
+            assert np.any((f / (s * JOB.cutter.teeth) > PLAUSIBLE_FZ_MM)
+                          | (f > PLAUSIBLE_F_MM_MIN) | (s > PLAUSIBLE_S_RPM))
+            return
+        assert not np.any(cutting)
         return
     a, b = _canon_pair(text, result.text)
     assert len(a.motion) > 0
