@@ -95,7 +95,7 @@ HOOKS = (
     ("verification", "ncopt.api:verify"),
     ("masked texts", "ncopt.rewrite:masked"),
     ("summary", "ncopt.api:_summary"),
-    ("lag check (thread)", "ncopt.api:_lag_warnings"),
+    ("lag check", "ncopt.api:_lag_warnings"),
     ("mesh edge lengths", "ncopt.mesh:mesh_resolution_mm"),
 )
 
