@@ -172,8 +172,10 @@ def row_norms(d: np.ndarray) -> np.ndarray:
     """(m,) Euclidean length of each row of the (m, 3) ``d``: ``np.linalg.norm(d, axis=1)``,
     the same sums in the same order (x^2 + y^2, then + z^2), without its reduction over a
     3-long axis (2-3x slower at 1M rows)."""
-    x, y, z = d[:, 0], d[:, 1], d[:, 2]
-    return np.sqrt(x * x + y * y + z * z)
+    sq = d * d
+    out = sq[:, 0] + sq[:, 1]
+    out += sq[:, 2]
+    return np.sqrt(out, out=out)
 
 
 def _evaluate(prog: Program, skip: np.ndarray | None = None):

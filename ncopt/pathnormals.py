@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .interp import row_norms
 from .model import Contacts, Cutter
 from .threads import available_cpus, map_in_threads
 from .tools import r_eff_mm
@@ -107,7 +108,7 @@ def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarra
 def _tangents(pts: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Unit along-path tangents: central differences, one-sided at breaks."""
     unit = np.diff(pts, axis=0)
-    seg = _row_norm(unit)
+    seg = row_norms(unit)
     jump = np.diff(s)
     jump -= seg
     np.abs(jump, out=jump)
@@ -125,20 +126,10 @@ def _tangents(pts: np.ndarray, s: np.ndarray) -> np.ndarray:
     t[1:] = unit
     t[:-1] += unit
     t[-1] += 0.0
-    norm = _row_norm(t)
+    norm = row_norms(t)
     t /= np.maximum(norm, 1e-12)[:, None]
     t[norm < 1e-9] = [1.0, 0.0, 0.0]
     return t
-
-
-def _row_norm(v: np.ndarray) -> np.ndarray:
-    """(m,) Euclidean norms of the rows of ``v`` (m, 3): the bits of
-    np.linalg.norm(v, axis=1) (its add.reduce sums three terms left to right), a
-    fifth of its time (a reduction over rows of three calls its loop per row)."""
-    sq = v * v
-    out = sq[:, 0] + sq[:, 1]
-    out += sq[:, 2]
-    return np.sqrt(out, out=out)
 
 
 def _other_pass(s: np.ndarray, a: int, nb: np.ndarray, dist: np.ndarray) -> np.ndarray:
@@ -158,9 +149,9 @@ def _fit_cross(pts, tangent, all_pts, nb, dist, other, axis=None):
     there is none).  ``axis``: (m, 3) tool axes, None for +Z."""
     up = np.array([0.0, 0.0, 1.0]) if axis is None else axis
     u = np.cross(tangent, up)  # horizontal, across the pass
-    vertical = _row_norm(u) < 1e-6  # a plunge: any horizontal direction will do
+    vertical = row_norms(u) < 1e-6  # a plunge: any horizontal direction will do
     u[vertical] = [1.0, 0.0, 0.0] if axis is None else _across(axis[vertical])
-    u /= np.maximum(_row_norm(u), 1e-12)[:, None]
+    u /= np.maximum(row_norms(u), 1e-12)[:, None]
     v = np.cross(u, tangent)  # perpendicular to the tangent, in its vertical plane
     v[_up(v, axis) < 0] *= -1.0
     off = np.take(all_pts, nb, axis=0)  # (m, k, 3); take: a third of all_pts[nb]'s time
@@ -179,7 +170,7 @@ def _fit_cross(pts, tangent, all_pts, nb, dist, other, axis=None):
     alpha = np.where(small, 0.0, alpha)
     beta = np.where(small, 1.0, beta)
     n = alpha[:, None] * u + beta[:, None] * v
-    n /= np.maximum(_row_norm(n), 1e-12)[:, None]
+    n /= np.maximum(row_norms(n), 1e-12)[:, None]
     n[_up(n, axis) < 0] *= -1.0
     has = _any_in_row(other)
     n[~has] = v[~has]  # no other pass near: no cross-slope
@@ -234,9 +225,9 @@ def _up(v: np.ndarray, axis: np.ndarray | None) -> np.ndarray:
 def _across(axis: np.ndarray) -> np.ndarray:
     """(m, 3) unit vectors perpendicular to each tool axis (+X for +Z)."""
     u = np.cross([0.0, 1.0, 0.0], axis)
-    small = _row_norm(u) < 0.5
+    small = row_norms(u) < 0.5
     u[small] = np.cross(axis[small], [1.0, 0.0, 0.0])
-    return u / _row_norm(u)[:, None]
+    return u / row_norms(u)[:, None]
 
 
 def contacts_from_path(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarray,
@@ -267,7 +258,7 @@ def tilt_from_axis(normal: np.ndarray, angle_rad: np.ndarray,
     if axis is not None:
         c = np.clip(np.einsum("ij,ij->i", normal, axis), -1.0, 1.0)
         side = normal - c[:, None] * axis
-        hn = _row_norm(side)
+        hn = row_norms(side)
         side = np.where(hn[:, None] > 1e-12, side / np.maximum(hn, 1e-12)[:, None],
                         _across(axis))
         polar = np.arccos(c) + angle_rad

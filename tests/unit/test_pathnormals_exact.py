@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
 import ncopt.pathnormals as pn
+from ncopt.interp import row_norms
 from ncopt.model import Cutter
 from ncopt.tools import r_eff_mm
 
@@ -192,13 +193,13 @@ def test_any_toolpath_gives_the_reference_bits(seed, rows, step, jitter, five_ax
     assert_same(got, want)
 
 
-def test_row_norm_has_the_bits_of_numpys_norm():
+def test_row_norms_have_the_bits_of_numpys_norm():
     rng = np.random.default_rng(5)
     v = rng.normal(size=(20000, 3)) * rng.choice([1e-300, 1e-8, 1.0, 1e8, 1e300], (20000, 3))
     v[::7, 1] = -0.0
     v[::11] = 0.0
     with np.errstate(over="ignore", under="ignore"):
-        assert np.array_equal(bits(pn._row_norm(v)), bits(np.linalg.norm(v, axis=1)))
+        assert np.array_equal(bits(row_norms(v)), bits(np.linalg.norm(v, axis=1)))
 
 
 @pytest.mark.parametrize("k", [0, 3, 4, 12, 13])
