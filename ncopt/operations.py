@@ -106,6 +106,8 @@ class Operation:
 # ------------------------------------------------------------------ comments ----
 _FREECAD = re.compile(r"^\s*\(\s*Begin operation:\s*(.*?)\s*\)\s*$", re.I)
 _ESTLCAM = re.compile(r"^\s*\(\s*No\.\s*\d+\s*:\s*(.*?)\s*\)\s*$", re.I)
+# ``( OPERATION=  ROUGH7  Z LEVEL  SRF_MILL1  )`` (the LinuxCNC 5-axis demos' post)
+_OPERATION_IS = re.compile(r"^\s*\(\s*OPERATION\s*=\s*([^()]*?)\s*\)\s*$", re.I)
 _COMMENT_ONLY = re.compile(r"^\s*(?:N[0-9.]+\s*)?\(\s*([^()]*?)\s*\)\s*$|^\s*;\s*(.*?)\s*$")
 _DASHES = re.compile(r"^\s*\(\s*[-=*]{4,}\s*\)\s*$")
 _NOT_AN_OPERATION = re.compile(
@@ -126,6 +128,10 @@ def operation_comments(prog: Program) -> dict[int, str]:
         m = _FREECAD.match(line) or _ESTLCAM.match(line)
         if m:
             found[i] = m.group(1)
+            continue
+        m = _OPERATION_IS.match(line)
+        if m and m.group(1):
+            found[i] = " ".join(m.group(1).split())
             continue
         m = _COMMENT_ONLY.match(line)
         name = ((m.group(1) if m.group(1) is not None else m.group(2)) or "").strip() if m else ""

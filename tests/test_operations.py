@@ -481,3 +481,15 @@ def test_constant_z_levels_close_together_are_a_wall_or_a_z_level_finish(radius,
     prog = parse_text(text)
     ops = [o for o in find(prog, interpret(prog), {1: 6.0}) if o.kind != "no cut"]
     assert [o.kind for o in ops] == [kind] and why in ops[0].reason, ops
+
+
+def test_operation_comments_of_the_linuxcnc_5axis_demos_name_the_operation():
+    """``( OPERATION=  ROUGH7  Z LEVEL  SRF_MILL1  )`` (the post of the LinuxCNC boat demos)
+    names the operation; it used to be dropped for its '=' and shown as ``T1``."""
+    from ncopt.operations import operation_comments
+    text = ("%\n(BOAT)\n\n( OPERATION=  ROUGH7  Z LEVEL  SRF_MILL1  )\n"
+            "( TOOL: T1 = 10.0 dia. ENDMILLM1000:REG )\nG00 G17 G40 G90 G94\nT1 M6\n"
+            "S630 M03\nG01 Z-6.625 F300.0\nX-49.375 F600.0\n\n( FINISH1 FLOWLINE SRF_MILL1 )\n"
+            "G01 X-34.78 Y-2.436\nM30\n%\n")
+    names = operation_comments(parse_text(text))
+    assert names == {3: "ROUGH7 Z LEVEL SRF_MILL1", 11: "FINISH1 FLOWLINE SRF_MILL1"}
