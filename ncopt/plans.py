@@ -798,11 +798,22 @@ def _located_reason(tp: Toolpath, op) -> str:
 def _nothing_why(ops, choices, tp: Toolpath | None = None) -> str:
     """Why nothing is planned, operation by operation (the first few); where no
     operation cuts, the first moves the interpreter left alone and why."""
-    rows = [f"{o.name} ({o.lines}): {o.reason}" for o in ops if o.kind not in (NO_CUT,)]
-    if not rows:
+    by_reason: dict[str, list[str]] = {}  # operations with the same reason: one row
+    for o in ops:
+        if o.kind not in (NO_CUT,):
+            by_reason.setdefault(o.reason, []).append(f"{o.name} ({o.lines})")
+    if not by_reason:
         first = next((w for w in (tp.warnings if tp is not None else ())
                       if ": not planned (" in w), None)
         more = f"; the first moves left alone: {first}" if first else ""
         return f"nothing to plan (no feed moves with a running spindle and a known position{more})"
+    rows = []
+    for reason, names in by_reason.items():
+        extra = f" and {len(names) - NAMES_PER_REASON} more" if len(names) > NAMES_PER_REASON \
+            else ""
+        rows.append(", ".join(names[:NAMES_PER_REASON]) + extra + f": {reason}")
     more = f"; and {len(rows) - 6} more" if len(rows) > 6 else ""
     return "nothing to plan: " + "; ".join(rows[:6]) + more
+
+
+NAMES_PER_REASON = 3  # operations named before "and N more" in a "nothing to plan" row

@@ -493,3 +493,19 @@ def test_operation_comments_of_the_linuxcnc_5axis_demos_name_the_operation():
             "G01 X-34.78 Y-2.436\nM30\n%\n")
     names = operation_comments(parse_text(text))
     assert names == {3: "ROUGH7 Z LEVEL SRF_MILL1", 11: "FINISH1 FLOWLINE SRF_MILL1"}
+
+
+def test_nothing_to_plan_names_operations_with_the_same_reason_once():
+    """Nine Estlcam operations with one flat end mill: one row for the reason, three names
+    and "and 6 more" (it listed the reason six times, then "and 3 more")."""
+    from types import SimpleNamespace
+
+    from ncopt.plans import _nothing_why
+    flat = "a flat end mill (2mm); ncopt plans ball and bull-nose cutters only"
+    ops = [SimpleNamespace(kind=TWO_D, name=f"Hole {k}", lines=f"lines {k}-{k}", reason=flat)
+           for k in range(1, 10)]
+    ops.insert(1, SimpleNamespace(kind=CANNED, name="Drill", lines="lines 20-30",
+                                  reason="a canned cycle"))
+    assert _nothing_why(ops, None) == (
+        "nothing to plan: Hole 1 (lines 1-1), Hole 2 (lines 2-2), Hole 3 (lines 3-3) "
+        f"and 6 more: {flat}; Drill (lines 20-30): a canned cycle")
