@@ -312,6 +312,10 @@ def _without_point(program: Program) -> np.ndarray:
         motion = _ffill_lines(program.n_lines, program.word_line,
                               g & np.isin(value, _MOTION_AND_CYCLES), value, 0.0)
         cand[k_word & np.isin(motion[program.word_line], _CYCLES)] = False
+    mode_word = cand & np.isin(letter, list(b"QR"))
+    if mode_word.any():  # G05.1 Q1 R5 (AI contour control): a mode and a level, not lengths
+        lines = np.unique(program.word_line[(letter == ord("G")) & (value == 5.1)])
+        cand[mode_word & np.isin(program.word_line, lines)] = False
     idx = np.flatnonzero(cand)
     if idx.size == 0:
         return cand

@@ -40,7 +40,11 @@ G_COMP = {400, 410, 420, 411, 421}
 G_NON_MODAL_MOVE = {280, 300, 530, 920, 921, 922, 923, 520, 100, 281, 301}
 # lines whose axis words are not a move's target: those above, and the origins of
 # coordinate rotations and tilted planes (G68, G68.2-G68.4, Haas G268)
-G_NOT_A_TARGET = G_NON_MODAL_MOVE | {680, 682, 683, 684, 2680}
+# splines and NURBS (LinuxCNC G5, G5.1, G5.2/G5.3; Fanuc G06.2) and Fanuc's AI contour
+# control G05.1 Q1 R5 / Q0, nano smoothing G05.1 Q2 X0 Y0 Z0: with axis words either a
+# curve ncopt does not follow or an axis designation that is no move; without them a mode
+G_SPLINE = {50, 51, 52, 53, 62}
+G_NOT_A_TARGET = G_NON_MODAL_MOVE | {680, 682, 683, 684, 2680} | G_SPLINE
 CANNED = {730, 760, 810, 820, 830, 840, 850, 860, 870, 880, 890}
 
 # opaque keywords known not to move the machine (Sinumerik settings)
@@ -286,7 +290,7 @@ def _check_semantics(prog: Program, lines: _LineTable, executed: np.ndarray) -> 
     if bad.size:
         _fail(prog, bad[0], "all axes missing with a probe move (G38.x); give a target")
     r_used = np.isin(motion, [20, 30] + list(CANNED))
-    r_used |= lines.has_g({640, 100, 760, 700, 710, 711, 712, 720, 721, 722})
+    r_used |= lines.has_g({640, 100, 760, 700, 710, 711, 712, 720, 721, 722, 51})  # G05.1 R: level
     r_used |= lines.has_m({19})
     bad = np.flatnonzero(lines.present("R") & ~r_used & executed)
     if bad.size:
@@ -422,6 +426,13 @@ def _unknown_events(prog, lines, modal, executed, poisoned, warnings) -> np.ndar
     event |= lines.has_m({6, 98, 99}) | lines.has_g({650, 660})
     event |= np.isin(modal.motion, list(CANNED)) | np.isin(modal.motion, [330, 382, 383, 384, 385])
     event |= np.isin(modal.comp, [410, 420, 411, 421])
+    spline = lines.has_g(G_SPLINE) & executed
+    spline &= lines.present("X") | lines.present("Y") | lines.present("Z")
+    for i in np.flatnonzero(spline)[:20].tolist():
+        warnings.append(f"{prog.path}:{i + 1}: a spline, NURBS or smoothing block (G5, G5.1, "
+                        "G5.2, G6.2) with axis words is not followed by ncopt; the moves after "
+                        "it keep their S/F until the position is known again")
+    event |= spline
     for i, reason in prog.opaque_reason.items():
         if reason.upper() not in HARMLESS_OPAQUE and not reason.endswith("="):
             event[i] = True

@@ -509,3 +509,21 @@ def test_nothing_to_plan_names_operations_with_the_same_reason_once():
     assert _nothing_why(ops, None) == (
         "nothing to plan: Hole 1 (lines 1-1), Hole 2 (lines 2-2), Hole 3 (lines 3-3) "
         f"and 6 more: {flat}; Drill (lines 20-30): a canned cycle")
+
+
+def test_a_fanuc_finish_with_ai_contour_control_is_planned():
+    """A Fanuc finishing program switching AI contour control on and off (``G05.1 Q1 R5``
+    ... ``G05.1 Q0``, as high-speed posts write it) is planned; both lines come out as they
+    went in.  It was refused at ``Q1`` ("no decimal point"), then at its R word."""
+    passes = []
+    for k, y in enumerate(np.arange(-6.0, 6.01, 1.0)):
+        xs = np.arange(-12.0, 12.01, 0.5)[::(-1 if k % 2 else 1)]
+        passes += [f"X{x:.3f} Y{y:.3f} Z{-0.02 * x * x - 0.01 * y * y:.3f}" for x in xs]
+    text = "\n".join(["%", "O1234 (FINISH)", "(T1 D=10. CR=5. - BALL END MILL)",
+                      "G21 G90 G17 G40 G49 G80", "T1 M6", "G54", "G05.1 Q1 R5", "S5000 M3",
+                      "G0 X-12. Y-6.", "G43 H1 Z10.", "G1 Z0. F1000.", *passes, "G05.1 Q0",
+                      "G0 Z50.", "M5", "M30", "%"]) + "\n"
+    res = rewrite_text(text, JOB, "aicc.nc")
+    assert res.summary.cutting_blocks > 600
+    out = res.text.splitlines()
+    assert "G05.1 Q1 R5" in out and "G05.1 Q0" in out

@@ -231,3 +231,14 @@ def test_the_marks_are_named_for_the_user():
 ])
 def test_corpus_programs_are_told_right(name, dialect):
     assert detect((CORPUS / name).read_bytes().decode("latin-1")).name == dialect
+
+
+def test_ai_contour_control_mode_and_level_need_no_decimal_point():
+    """``G05.1 Q1 R5`` (Fanuc AI contour control on, precision level 5) and ``G05.1 Q0``:
+    Q and R are a mode and a level, the same in every convention; they were refused as
+    lengths ("`Q1` has no decimal point"). A Q of a drilling cycle still is a length."""
+    aicc = "%\nO1\nG21 G90 G17\nG05.1 Q1 R5\nG0 X1. Y2.\nG05.1 Q0\nM30\n%\n"
+    assert decimal_point_issue(parse_text(aicc, "f.nc"), FANUC) is None
+    peck = "%\nO1\nG21 G90 G17\nG83 X1. Y2. Z-3. R1. Q1 F100.\nG80\nM30\n%\n"
+    issue = decimal_point_issue(parse_text(peck, "f.nc"), FANUC)
+    assert issue is not None and issue.message.startswith("`Q1` has no decimal point")

@@ -310,3 +310,28 @@ def test_two_g_codes_of_one_modal_group_on_an_executed_line_are_refused(body, li
         interpret(prog)
     assert info.value.line == line
     assert "two G codes from the same modal group on one line" in info.value.message
+
+
+def test_ai_contour_control_is_a_mode_and_keeps_the_motion():
+    """Fanuc ``G05.1 Q1 R5`` switches AI contour control on: no move, its R is a level
+    (it was refused: "R word with no G code that uses it"), and the line after it still
+    moves in the motion mode before it (G0 here)."""
+    tp = interpret(parse_text("G21 G90\nS1000 M3\nG0 X0 Y0 Z5\nG05.1 Q1 R5\nZ1\n"
+                              "G1 Z0 F100\nX10\nG05.1 Q0\nM30\n"))
+    assert tp.line.tolist() == [-1, 2, 4, 5, 6]
+    assert tp.motion.tolist() == [-1, Motion.RAPID, Motion.RAPID, Motion.LINEAR, Motion.LINEAR]
+    assert tp.known[2:].all() and not tp.warnings  # the first move starts nowhere known
+
+
+@pytest.mark.parametrize("block", ["G5.1 X20 Y0 I5 J5", "G5 X20 Y0 I5 J5 P5 Q-5",
+                                   "G5.2 X20 Y0 P1 L3", "G05.1 Q2 X0 Y0 Z0"])
+def test_a_spline_or_smoothing_block_with_axes_is_not_followed(block):
+    """A LinuxCNC spline or NURBS block, or Fanuc's nano smoothing axis designation: ncopt
+    does not follow it (the spline was read as a straight G1 to its end point), so the
+    moves after it are left until a move gives every axis again, with a located warning."""
+    tp = interpret(parse_text(f"G21 G90\nS1000 M3\nG0 X0 Y0 Z5\nG1 Z0 F100\nX10\n{block}\n"
+                              "G1 X30 Y0\nX40 Y0 Z0\nX50\nM30\n"))
+    assert 5 not in tp.line.tolist()  # the block itself is no straight move
+    known = dict(zip(tp.line.tolist(), tp.known.tolist()))
+    assert known[4] and not known[6] and not known[7] and known[8]
+    assert tp.warnings[0].startswith("<input>:6: a spline, NURBS or smoothing block")
