@@ -90,9 +90,10 @@ def interpret(prog: Program, start: StartState = StartState(),
     _check_semantics(prog, lines, executed)
     modal = _modal_state(lines, start, executed)
     orient = read_orientation(prog, lines, modal, executed, kinematics)
-    pos_mm, known = _positions(prog, lines, modal, executed, poisoned, warnings)
+    pos_mm, known, last_event = _positions(prog, lines, modal, executed, poisoned, warnings)
     _check_comp_corners(prog, lines, modal, pos_mm, known, executed)
-    tp = _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings, orient)
+    tp = _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings, orient,
+                       last_event)
     tp = replace(tp, lines=_line_state(prog, lines, modal, executed))
     return tp if orient is None else with_tool_axis(tp, orient)
 
@@ -448,7 +449,8 @@ def _unknown_events(prog, lines, modal, executed, poisoned, warnings) -> np.ndar
 
 
 def _positions(prog, lines, modal, executed, poisoned, warnings):
-    """Absolute positions in mm per line (n,3) and whether each axis is known."""
+    """Absolute positions in mm per line (n,3), whether each axis is known, and (n,) the
+    last line at or before each after which no position can be trusted (-1: none)."""
     events = _unknown_events(prog, lines, modal, executed, poisoned, warnings)
     special = lines.has_g(G_NOT_A_TARGET) | np.isin(modal.motion, list(CANNED))
     scale = np.where(modal.inch, MM_PER_INCH, 1.0)
@@ -468,11 +470,12 @@ def _positions(prog, lines, modal, executed, poisoned, warnings):
         known[:, k] = last_abs > last_evt
         # an event on the same line as an absolute word: the word is a target
         # of that special move (G28 X0...), the axis stays unknown
-    return pos, known
+    return pos, known, last_evt
 
 
 def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
-                  orient: Orientation | None = None) -> Toolpath:
+                  orient: Orientation | None = None,
+                  last_event: np.ndarray | None = None) -> Toolpath:
     motion = modal.motion
     axes_present = lines.present("X") | lines.present("Y") | lines.present("Z")
     if orient is not None:  # a rotary-only move turns the tool: a move of its own
@@ -495,6 +498,11 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
     seg_len = np.zeros(move_lines.shape[0])
     prev_pt = np.vstack((np.zeros((1, 3)), end[:-1]))
     prev_known = np.concatenate(([False], end_known[:-1]))
+    if last_event is not None and move_lines.size:
+        # after a tool change, G28, a canned cycle, compensation... between two moves the
+        # next one starts where ncopt does not know, even where it gives every axis again
+        prev_line = np.concatenate(([-1], move_lines[:-1]))
+        prev_known &= ~(last_event[move_lines] > prev_line)
     seg_len[:] = row_norms(end - prev_pt)
     for j in arcs.tolist():
         i = move_lines[j]

@@ -335,3 +335,15 @@ def test_a_spline_or_smoothing_block_with_axes_is_not_followed(block):
     known = dict(zip(tp.line.tolist(), tp.known.tolist()))
     assert known[4] and not known[6] and not known[7] and known[8]
     assert tp.warnings[0].startswith("<input>:6: a spline, NURBS or smoothing block")
+
+
+@pytest.mark.parametrize("between", ["G28 Z0", "T2 M6", "G81 X5 Y5 Z-3 R1 F100\nX8 Y5\nG80"])
+def test_the_move_after_a_lost_position_starts_nowhere_known(between):
+    """A move giving every axis right after G28, a tool change or a drilling cycle ends
+    where it says but starts where ncopt does not know: it was timed and planned from the
+    point before (as if G28 had not moved the machine)."""
+    text = f"G21 G90\nS1000 M3\nG0 X0 Y0 Z5\nG1 Z0 F100\nX10\n{between}\nG1 X20 Y5 Z0\nX30\nM30\n"
+    tp = interpret(parse_text(text))
+    after = text.count("\n", 0, text.index("G1 X20"))  # 0-based line of the move after
+    known = dict(zip(tp.line.tolist(), tp.known.tolist()))
+    assert known[4] and not known[after] and known[after + 1]
