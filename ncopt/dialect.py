@@ -316,6 +316,10 @@ def _without_point(program: Program) -> np.ndarray:
     if mode_word.any():  # G05.1 Q1 R5 (AI contour control): a mode and a level, not lengths
         lines = np.unique(program.word_line[(letter == ord("G")) & (value == 5.1)])
         cand[mode_word & np.isin(program.word_line, lines)] = False
+    factor = cand & np.isin(letter, list(b"IJK"))
+    if factor.any():  # G51 X Y Z I J K: I J K scale factors, not lengths
+        lines = np.unique(program.word_line[(letter == ord("G")) & (value == 51.0)])
+        cand[factor & np.isin(program.word_line, lines)] = False
     idx = np.flatnonzero(cand)
     if idx.size == 0:
         return cand

@@ -44,7 +44,18 @@ G_NON_MODAL_MOVE = {280, 300, 530, 920, 921, 922, 923, 520, 100, 281, 301}
 # control G05.1 Q1 R5 / Q0, nano smoothing G05.1 Q2 X0 Y0 Z0: with axis words either a
 # curve ncopt does not follow or an axis designation that is no move; without them a mode
 G_SPLINE = {50, 51, 52, 53, 62}
-G_NOT_A_TARGET = G_NON_MODAL_MOVE | {680, 682, 683, 684, 2680} | G_SPLINE
+# Fanuc scaling G51 (P or I J K the factors) and programmable mirror image G51.1, cancelled
+# by G50 / G50.1: their axis words are a centre or the axes mirrored, not a target
+G_SCALE_ON = {510, 511}
+G_SCALE_OFF = {500, 501}
+G_NOT_A_TARGET = G_NON_MODAL_MOVE | {680, 682, 683, 684, 2680} | G_SPLINE | G_SCALE_ON \
+    | G_SCALE_OFF
+# Sinumerik's programmable frame: SCALE/ASCALE and MIRROR/AMIRROR scale or mirror the
+# geometry; TRANS, ROT, SCALE or MIRROR without arguments reset the whole frame
+KW_SCALE = {"SCALE", "ASCALE", "MIRROR", "AMIRROR"}
+KW_FRAME_RESET = {"SCALE", "MIRROR", "TRANS", "ROT"}
+SCALED_WHY = ("scaling or a mirror image in force (G51, G51.1, SCALE, MIRROR): ncopt plans "
+              "programs as written, unscaled")
 CANNED = {730, 760, 810, 820, 830, 840, 850, 860, 870, 880, 890}
 
 # opaque keywords known not to move the machine (Sinumerik settings)
@@ -424,7 +435,7 @@ def _unknown_events(prog, lines, modal, executed, poisoned, warnings) -> np.ndar
     """(n,) bool: lines after which no axis position can be trusted."""
     event = np.zeros(lines.n, dtype=bool)
     event |= lines.has_g({280, 300, 530, 920, 921, 922, 923, 520, 281, 301})
-    event |= lines.has_m({6, 98, 99}) | lines.has_g({650, 660})
+    event |= lines.has_m({6, 98, 99}) | lines.has_g({650, 660} | G_SCALE_ON | G_SCALE_OFF)
     event |= np.isin(modal.motion, list(CANNED)) | np.isin(modal.motion, [330, 382, 383, 384, 385])
     event |= np.isin(modal.comp, [410, 420, 411, 421])
     spline = lines.has_g(G_SPLINE) & executed
@@ -435,7 +446,9 @@ def _unknown_events(prog, lines, modal, executed, poisoned, warnings) -> np.ndar
                         "it keep their S/F until the position is known again")
     event |= spline
     for i, reason in prog.opaque_reason.items():
-        if reason.upper() not in HARMLESS_OPAQUE and not reason.endswith("="):
+        if reason.upper() in KW_SCALE:
+            event[i] = True  # the moves under it get their own reason (SCALED_WHY)
+        elif reason.upper() not in HARMLESS_OPAQUE and not reason.endswith("="):
             event[i] = True
             warnings.append(f"{prog.path}:{i + 1}: '{reason}' is not interpreted by ncopt; "
                             "the moves after it keep their S/F until the position is "
@@ -539,6 +552,8 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
                                           lines.value("F")[move_lines], feed_mm, block_len)
     seg_known = end_known & prev_known & g93_ok
     seg_known &= (modal.feed_mode[move_lines] != G95) & ~comp[move_lines]
+    scaled = _scaled(prog, lines, executed)
+    seg_known &= ~scaled[move_lines]
     if orient is not None:
         seg_known &= orient.blocked[move_lines] == 0
     known_pts = rep(seg_known, False)
@@ -546,7 +561,7 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
     no_f = np.zeros(lines.n, dtype=bool)
     no_f[move_lines[~g93_ok]] = True
     _warn_unplanned(prog, move_lines[feed_moves], seg_known[feed_moves], modal, warnings, orient,
-                    no_f)
+                    no_f, scaled)
     return Toolpath(
         xyz_mm=xyz, line=line, motion=mcode,
         feed_mm_min=rep(np.where(mcode_is_feed(motion[move_lines]), feed_mm, np.nan), np.nan),
@@ -568,8 +583,35 @@ def _check_feed(prog, modal, move_lines) -> None:
         _fail(prog, bad[0], "feed move with zero feed rate; add an F word before it")
 
 
+def _scaled(prog, lines, executed) -> np.ndarray:
+    """(n,) bool: a scaling or mirror image is in force on the line (Fanuc G51/G51.1 until
+    G50/G50.1, Sinumerik SCALE/ASCALE/MIRROR/AMIRROR until the frame is reset; M2/M30 end
+    both).  The moves under it are not where the program says, nor the surface as long."""
+    state = np.full(lines.n, np.nan)
+    state[lines.has_g(G_SCALE_OFF)] = 0.0
+    state[lines.has_g(G_SCALE_ON)] = 1.0
+    for i, head in prog.opaque_reason.items():
+        up = head.upper()
+        if up in KW_SCALE or up in KW_FRAME_RESET:
+            args = bool(_after_keyword(prog.line_text(i), up))
+            if up in KW_SCALE and args:
+                state[i] = 1.0
+            elif up in KW_FRAME_RESET and not args:
+                state[i] = 0.0
+    state[lines.has_m({2, 30})] = 0.0
+    state[~executed] = np.nan
+    return ffill(state, 0.0) > 0
+
+
+def _after_keyword(text: str, head: str) -> str:
+    """What follows the keyword ``head`` on its line, comments dropped."""
+    at = text.upper().find(head)
+    rest = text[at + len(head):] if at >= 0 else ""
+    return re.sub(r"\([^()]*\)|;.*$", "", rest).strip()
+
+
 def _warn_unplanned(prog, move_lines, seg_known, modal, warnings, orient=None,
-                    no_f=None) -> None:
+                    no_f=None, scaled=None) -> None:
     unknown = move_lines[~seg_known]
     if unknown.size == 0:
         return
@@ -578,7 +620,9 @@ def _warn_unplanned(prog, move_lines, seg_known, modal, warnings, orient=None,
     stops = np.concatenate((unknown[breaks], [unknown[-1]]))
     for a, b in list(zip(starts.tolist(), stops.tolist()))[:20]:
         why = "position not known"
-        if orient is not None and orient.blocked[a]:
+        if scaled is not None and scaled[a]:
+            why = SCALED_WHY
+        elif orient is not None and orient.blocked[a]:
             why = orient.reasons[orient.blocked[a]]
         elif modal.feed_mode[a] == G95:
             why = "per-revolution feed (G95)"

@@ -242,3 +242,9 @@ def test_ai_contour_control_mode_and_level_need_no_decimal_point():
     peck = "%\nO1\nG21 G90 G17\nG83 X1. Y2. Z-3. R1. Q1 F100.\nG80\nM30\n%\n"
     issue = decimal_point_issue(parse_text(peck, "f.nc"), FANUC)
     assert issue is not None and issue.message.startswith("`Q1` has no decimal point")
+
+
+def test_scaling_factors_need_no_decimal_point():
+    """``G51 X0. Y0. Z0. I500 J500 K500``: I J K are the axes' scale factors, not lengths."""
+    text = "%\nO1\nG21 G90 G17\nG51 X0. Y0. Z0. I500 J500 K500\nG0 X1. Y2.\nG50\nM30\n%\n"
+    assert decimal_point_issue(parse_text(text, "f.nc"), FANUC) is None

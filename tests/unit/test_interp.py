@@ -347,3 +347,22 @@ def test_the_move_after_a_lost_position_starts_nowhere_known(between):
     after = text.count("\n", 0, text.index("G1 X20"))  # 0-based line of the move after
     known = dict(zip(tp.line.tolist(), tp.known.tolist()))
     assert known[4] and not known[after] and known[after + 1]
+
+
+@pytest.mark.parametrize("on, off", [("G51 X0 Y0 P500", "G50"), ("G51.1 X0", "G50.1 X0"),
+                                     ("SCALE X0.5 Y0.5", "SCALE"), ("ASCALE X2 Y2", "TRANS"),
+                                     ("MIRROR X0", "MIRROR"), ("AMIRROR Y0", "ROT")])
+def test_moves_under_a_scaling_or_mirror_image_are_not_planned(on, off):
+    """Fanuc G51/G51.1 and Sinumerik SCALE/MIRROR change the geometry the program states
+    (a path scaled by 0.5 is steeper, its R_eff larger: S as planned would be too fast):
+    the moves under them are left with the reason; after the reset they are planned again
+    once every axis is given.  They used to be planned as written (G51 even read as a move
+    to its centre)."""
+    text = (f"G21 G90\nS1000 M3\nG0 X0 Y0 Z5\nG1 Z0 F100\nX10\n{on}\nG1 X20 Y5 Z0\nX30\n"
+            f"{off}\nG1 X40 Y5 Z0\nX50\nM30\n")
+    tp = interpret(parse_text(text))
+    known = dict(zip(tp.line.tolist(), tp.known.tolist()))
+    assert 5 not in known and 8 not in known  # the G51/G50 lines are no moves
+    assert known[4] and not known[6] and not known[7] and not known[9] and known[10]
+    assert any(":7-8: not planned (scaling or a mirror image in force" in w for w in tp.warnings)
+    assert not any(f"'{on.split()[0]}' is not interpreted" in w for w in tp.warnings)
