@@ -448,6 +448,10 @@ def _unknown_events(prog, lines, modal, executed, poisoned, warnings) -> np.ndar
     for i, reason in prog.opaque_reason.items():
         if reason.upper() in KW_SCALE:
             event[i] = True  # the moves under it get their own reason (SCALED_WHY)
+        elif reason.upper() in ("F", "S"):
+            # G1 X15 F=R1: the line is no move ncopt reads, so the position is lost too;
+            # the moves under it get their own reason, not this warning
+            event[i] = True
         elif reason.upper() not in HARMLESS_OPAQUE and not reason.endswith("="):
             event[i] = True
             warnings.append(f"{prog.path}:{i + 1}: '{reason}' is not interpreted by ncopt; "
@@ -524,7 +528,9 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
         pts, lengths = _arc_points(prog, lines, modal, i, prev_pt[j], end[j], start.chord_tol_mm)
         pieces[j] = (pts, lengths)
         counts[j] = pts.shape[0]
-    _check_feed(prog, modal, move_lines)
+    computed_f = _computed(prog, lines, executed, "F")
+    computed_s = _computed(prog, lines, executed, "S")
+    _check_feed(prog, modal, move_lines[~computed_f[move_lines]])
     n_pts = int(counts.sum()) + 1
     one_each = n_pts == move_lines.shape[0] + 1  # no arc cut into pieces: nothing to repeat
     xyz = np.zeros((n_pts, 3))
@@ -553,7 +559,7 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
     seg_known = end_known & prev_known & g93_ok
     seg_known &= (modal.feed_mode[move_lines] != G95) & ~comp[move_lines]
     scaled = _scaled(prog, lines, executed)
-    seg_known &= ~scaled[move_lines]
+    seg_known &= ~scaled[move_lines] & ~computed_f[move_lines] & ~computed_s[move_lines]
     if orient is not None:
         seg_known &= orient.blocked[move_lines] == 0
     known_pts = rep(seg_known, False)
@@ -561,7 +567,7 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
     no_f = np.zeros(lines.n, dtype=bool)
     no_f[move_lines[~g93_ok]] = True
     _warn_unplanned(prog, move_lines[feed_moves], seg_known[feed_moves], modal, warnings, orient,
-                    no_f, scaled)
+                    no_f, scaled, computed_f, computed_s)
     return Toolpath(
         xyz_mm=xyz, line=line, motion=mcode,
         feed_mm_min=rep(np.where(mcode_is_feed(motion[move_lines]), feed_mm, np.nan), np.nan),
@@ -603,6 +609,19 @@ def _scaled(prog, lines, executed) -> np.ndarray:
     return ffill(state, 0.0) > 0
 
 
+def _computed(prog, lines, executed, letter: str) -> np.ndarray:
+    """(n,) bool: the feed (``letter`` F) or spindle speed (S) in force is a Sinumerik
+    assignment ncopt does not evaluate (``F=R1``, ``S=R2*2``), from that line to the next
+    such word with a number."""
+    state = np.full(lines.n, np.nan)
+    state[lines.present(letter)] = 0.0
+    for i, head in prog.opaque_reason.items():
+        if head.upper() == letter:
+            state[i] = 1.0
+    state[~executed] = np.nan
+    return ffill(state, 0.0) > 0
+
+
 def _after_keyword(text: str, head: str) -> str:
     """What follows the keyword ``head`` on its line, comments dropped."""
     at = text.upper().find(head)
@@ -611,7 +630,7 @@ def _after_keyword(text: str, head: str) -> str:
 
 
 def _warn_unplanned(prog, move_lines, seg_known, modal, warnings, orient=None,
-                    no_f=None, scaled=None) -> None:
+                    no_f=None, scaled=None, computed_f=None, computed_s=None) -> None:
     unknown = move_lines[~seg_known]
     if unknown.size == 0:
         return
@@ -622,6 +641,10 @@ def _warn_unplanned(prog, move_lines, seg_known, modal, warnings, orient=None,
         why = "position not known"
         if scaled is not None and scaled[a]:
             why = SCALED_WHY
+        elif computed_s is not None and computed_s[a]:
+            why = "the spindle speed is an assignment (S=...) ncopt does not evaluate"
+        elif computed_f is not None and computed_f[a]:
+            why = "the feed is an assignment (F=...) ncopt does not evaluate"
         elif orient is not None and orient.blocked[a]:
             why = orient.reasons[orient.blocked[a]]
         elif modal.feed_mode[a] == G95:

@@ -366,3 +366,22 @@ def test_moves_under_a_scaling_or_mirror_image_are_not_planned(on, off):
     assert known[4] and not known[6] and not known[7] and not known[9] and known[10]
     assert any(":7-8: not planned (scaling or a mirror image in force" in w for w in tp.warnings)
     assert not any(f"'{on.split()[0]}' is not interpreted" in w for w in tp.warnings)
+
+
+@pytest.mark.parametrize("word, why", [("F=R1", "the feed is an assignment (F=...)"),
+                                       ("S=R2", "the spindle speed is an assignment (S=...)")])
+def test_a_computed_feed_or_speed_leaves_its_moves_with_the_reason(word, why):
+    """Sinumerik ``G1 Z0 F=R1`` / ``S=R2``: ncopt does not evaluate R parameters, so the moves
+    under them are left as programmed with the reason, until a plain F / S word (and the
+    position is given again: ncopt reads no move on the assignment's line).  F=R1 was
+    refused outright ("feed move with zero feed rate; add an F word"), and S=R2 left the
+    S before it in force, as if the assignment had not been there."""
+    text = (f"R1=1000\nR2=5000\nG21 G90\nS1000 M3\nG0 X0 Y0 Z5\nG1 Z0 F100\nX10\n"
+            f"G1 X15 {word}\nX20 Y5\nX30 Y5 Z0 {word[0]}{'200' if word[0] == 'F' else '2000'}\n"
+            "X40\nM30\n")
+    tp = interpret(parse_text(text, dialect="sinumerik"))
+    known = dict(zip(tp.line.tolist(), tp.known.tolist()))
+    assert 7 not in known  # the line with the assignment is read as no move
+    assert known[6] and not known[8] and not known[9] and known[10]
+    assert any(f":9-10: not planned ({why}" in w for w in tp.warnings)
+    assert not any(f"'{word[0]}' is not interpreted" in w for w in tp.warnings)
