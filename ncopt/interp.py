@@ -24,6 +24,7 @@ from .expr import Params, Unknown
 from .feedmode import G93, G95, tip_feed_mm_min
 from .model import LineKind, LineState, Program, Toolpath
 from .orientation import Orientation, read_orientation, with_tool_axis
+from .planes import after_keyword
 from .refuse import MIN_ARC_RADIUS_MM, check_arc_centres, check_signs, check_words
 
 MM_PER_INCH = 25.4
@@ -599,7 +600,7 @@ def _scaled(prog, lines, executed) -> np.ndarray:
     for i, head in prog.opaque_reason.items():
         up = head.upper()
         if up in KW_SCALE or up in KW_FRAME_RESET:
-            args = bool(_after_keyword(prog.line_text(i), up))
+            args = bool(after_keyword(prog.line_text(i), up))
             if up in KW_SCALE and args:
                 state[i] = 1.0
             elif up in KW_FRAME_RESET and not args:
@@ -620,13 +621,6 @@ def _computed(prog, lines, executed, letter: str) -> np.ndarray:
             state[i] = 1.0
     state[~executed] = np.nan
     return ffill(state, 0.0) > 0
-
-
-def _after_keyword(text: str, head: str) -> str:
-    """What follows the keyword ``head`` on its line, comments dropped."""
-    at = text.upper().find(head)
-    rest = text[at + len(head):] if at >= 0 else ""
-    return re.sub(r"\([^()]*\)|;.*$", "", rest).strip()
 
 
 def _warn_unplanned(prog, move_lines, seg_known, modal, warnings, orient=None,

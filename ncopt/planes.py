@@ -78,7 +78,7 @@ def frames(prog, lines, modal, executed, keywords, rotary, r):
         elif head in KW_ROTATIONS and _TILT_WORDS.search(text):
             state[i] = r.code(f"a frame rotation about X or Y ('{head}', line {i + 1}) tilts "
                               "the plane; ncopt does not read its frame")
-        elif head in KW_FRAME_OFF or (head in ("ROT", "TRANS") and not _after(text, head)):
+        elif head in KW_FRAME_OFF or (head in ("ROT", "TRANS") and not after_keyword(text, head)):
             state[i] = 0.0
     state[lines.has_g(G_FRAME_OFF) & executed & np.isnan(state)] = 0.0
     state[lines.has_m({2, 30}) & executed] = 0.0
@@ -138,7 +138,7 @@ def _restated(lines, modal, executed, state) -> np.ndarray:
     return ok | (last_change < 0)
 
 
-def _after(text: str, head: str) -> str:
+def after_keyword(text: str, head: str) -> str:
     """What follows the keyword ``head`` on its line (comments dropped)."""
     at = text.upper().find(head)
     rest = text[at + len(head):] if at >= 0 else ""
