@@ -57,6 +57,14 @@ KW_SCALE = {"SCALE", "ASCALE", "MIRROR", "AMIRROR"}
 KW_FRAME_RESET = {"SCALE", "MIRROR", "TRANS", "ROT"}
 SCALED_WHY = ("scaling or a mirror image in force (G51, G51.1, SCALE, MIRROR): ncopt plans "
               "programs as written, unscaled")
+# modes under which the words do not mean what ncopt reads: (on codes, off codes, why);
+# their moves are left as programmed (G07.1 is switched off by G07.1 C0)
+G_MODES_NOT_READ = (
+    ({160}, {150}, "polar coordinates (G16): X is a radius and Y an angle"),
+    ({121}, {131}, "polar coordinate interpolation (G12.1)"),
+    ({71}, set(), "cylindrical interpolation (G07.1)"),
+    ({960}, {970}, "constant surface speed (G96): S is a cutting speed, not RPM"),
+)
 CANNED = {730, 760, 810, 820, 830, 840, 850, 860, 870, 880, 890}
 
 # opaque keywords known not to move the machine (Sinumerik settings)
@@ -436,7 +444,8 @@ def _unknown_events(prog, lines, modal, executed, poisoned, warnings) -> np.ndar
     """(n,) bool: lines after which no axis position can be trusted."""
     event = np.zeros(lines.n, dtype=bool)
     event |= lines.has_g({280, 300, 530, 920, 921, 922, 923, 520, 281, 301})
-    event |= lines.has_m({6, 98, 99}) | lines.has_g({650, 660} | G_SCALE_ON | G_SCALE_OFF)
+    event |= lines.has_m({6, 98, 99}) | lines.has_g({650, 660} | G_SCALE_ON | G_SCALE_OFF
+                                                    | {160, 150, 121, 131, 71})
     event |= np.isin(modal.motion, list(CANNED)) | np.isin(modal.motion, [330, 382, 383, 384, 385])
     event |= np.isin(modal.comp, [410, 420, 411, 421])
     spline = lines.has_g(G_SPLINE) & executed
@@ -560,7 +569,9 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
     seg_known = end_known & prev_known & g93_ok
     seg_known &= (modal.feed_mode[move_lines] != G95) & ~comp[move_lines]
     scaled = _scaled(prog, lines, executed)
+    mode = _modes_not_read(lines, executed)
     seg_known &= ~scaled[move_lines] & ~computed_f[move_lines] & ~computed_s[move_lines]
+    seg_known &= mode[move_lines] == 0
     if orient is not None:
         seg_known &= orient.blocked[move_lines] == 0
     known_pts = rep(seg_known, False)
@@ -568,7 +579,7 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
     no_f = np.zeros(lines.n, dtype=bool)
     no_f[move_lines[~g93_ok]] = True
     _warn_unplanned(prog, move_lines[feed_moves], seg_known[feed_moves], modal, warnings, orient,
-                    no_f, scaled, computed_f, computed_s)
+                    no_f, scaled, computed_f, computed_s, mode)
     return Toolpath(
         xyz_mm=xyz, line=line, motion=mcode,
         feed_mm_min=rep(np.where(mcode_is_feed(motion[move_lines]), feed_mm, np.nan), np.nan),
@@ -588,6 +599,22 @@ def _check_feed(prog, modal, move_lines) -> None:
                      & (modal.feed_mode[feed_moves] == 940)]
     if bad.size:
         _fail(prog, bad[0], "feed move with zero feed rate; add an F word before it")
+
+
+def _modes_not_read(lines, executed) -> np.ndarray:
+    """(n,) int: 1 + the index in :data:`G_MODES_NOT_READ` of a mode in force on the line
+    (the first listed wins), 0 where none is."""
+    out = np.zeros(lines.n, dtype=np.int64)
+    for k, (on, off, _) in reversed(list(enumerate(G_MODES_NOT_READ))):
+        state = np.full(lines.n, np.nan)
+        state[lines.has_g(off)] = 0.0
+        state[lines.has_g(on)] = 1.0
+        if 71 in on:  # G07.1 C0 (a zero radius) switches cylindrical interpolation off
+            state[lines.has_g(on) & (np.nan_to_num(lines.value("C"), nan=1.0) == 0.0)] = 0.0
+        state[lines.has_m({2, 30})] = 0.0
+        state[~executed] = np.nan
+        out[ffill(state, 0.0) > 0] = k + 1
+    return out
 
 
 def _scaled(prog, lines, executed) -> np.ndarray:
@@ -624,7 +651,8 @@ def _computed(prog, lines, executed, letter: str) -> np.ndarray:
 
 
 def _warn_unplanned(prog, move_lines, seg_known, modal, warnings, orient=None,
-                    no_f=None, scaled=None, computed_f=None, computed_s=None) -> None:
+                    no_f=None, scaled=None, computed_f=None, computed_s=None,
+                    mode=None) -> None:
     unknown = move_lines[~seg_known]
     if unknown.size == 0:
         return
@@ -633,7 +661,9 @@ def _warn_unplanned(prog, move_lines, seg_known, modal, warnings, orient=None,
     stops = np.concatenate((unknown[breaks], [unknown[-1]]))
     for a, b in list(zip(starts.tolist(), stops.tolist()))[:20]:
         why = "position not known"
-        if scaled is not None and scaled[a]:
+        if mode is not None and mode[a]:
+            why = G_MODES_NOT_READ[mode[a] - 1][2]
+        elif scaled is not None and scaled[a]:
             why = SCALED_WHY
         elif computed_s is not None and computed_s[a]:
             why = "the spindle speed is an assignment (S=...) ncopt does not evaluate"

@@ -385,3 +385,21 @@ def test_a_computed_feed_or_speed_leaves_its_moves_with_the_reason(word, why):
     assert known[6] and not known[8] and not known[9] and known[10]
     assert any(f":9-10: not planned ({why}" in w for w in tp.warnings)
     assert not any(f"'{word[0]}' is not interpreted" in w for w in tp.warnings)
+
+
+@pytest.mark.parametrize("on, off, why", [
+    ("G16", "G15", "polar coordinates (G16)"),
+    ("G12.1", "G13.1", "polar coordinate interpolation (G12.1)"),
+    ("G07.1 C10", "G07.1 C0", "cylindrical interpolation (G07.1)"),
+    ("G96 S200", "G97 S1000", "constant surface speed (G96)")])
+def test_moves_under_a_mode_ncopt_does_not_read_are_left(on, off, why):
+    """Under G16 X is a radius and Y an angle, under G96 S is m/min: read as written they
+    were planned as Cartesian moves at S200 RPM.  Now they are left with the reason, and
+    planned again after the mode is switched off and every axis given."""
+    text = (f"G21 G90\nS1000 M3\nG0 X0 Y0 Z5\nG1 Z0 F100\nX10\n{on}\nG1 X20 Y5 Z0\nX30\n"
+            f"{off}\nG1 X40 Y5 Z0\nX50\nM30\n")
+    tp = interpret(parse_text(text))
+    known = dict(zip(tp.line.tolist(), tp.known.tolist()))
+    assert known[4] and not known[6] and not known[7] and known[10]
+    assert any(f"-8: not planned ({why}" in w or f"-10: not planned ({why}" in w
+               for w in tp.warnings)  # G07.1 C10 is read as a rotary move of its own
