@@ -9,7 +9,7 @@ import numpy as np
 
 from .dialect import (HEIDENHAIN, SINUMERIK, apply_decimal_point,
                       check_convention_applies, decimal_point_issue, detect)
-from .interp import interpret
+from .interp import INCH_HEADER, interpret
 from .kinematics import tilt_deg
 from .times import feed_minutes
 from .model import LineKind, Motion, Program
@@ -166,8 +166,8 @@ def _units_note(g: np.ndarray, dialect: str) -> str:
         inch = [c for c in (70.0, 700.0) if np.any(g == c)]
         if inch:
             return (f"G{inch[0]:g} selects inch on this control, but ncopt reads units from "
-                    "G20/G21 only and reads this program in mm: do not rewrite it until it "
-                    "says G20")
+                    "G20/G21 only and reads this program in mm: the moves under it are left "
+                    "as programmed until it says G20")
         if np.isin(g, (71.0, 710.0)).any():
             return ""
     return ("no G20/G21 in the program: ncopt reads it in mm, as a control does that starts "
@@ -197,6 +197,9 @@ def _notes(prog: Program, dialect: str, table: dict) -> tuple[str, ...]:
     """What the program's owner should know before ncopt changes anything."""
     notes = []
     g = prog.word_value[prog.word_letter == ord("G")]
+    first = next((i for i in range(min(prog.n_lines, 5)) if prog.line_text(i).strip()), None)
+    if first is not None and INCH_HEADER.match(prog.line_text(first)):
+        g = np.append(g, 70.0)  # "%NAME G70 *": a Heidenhain ISO program in inch
     note = _units_note(g, dialect)
     if note and prog.n_words:
         notes.append(f"{prog.path}: {note}")

@@ -64,7 +64,11 @@ G_MODES_NOT_READ = (
     ({121}, {131}, "polar coordinate interpolation (G12.1)"),
     ({71}, set(), "cylindrical interpolation (G07.1)"),
     ({960}, {970}, "constant surface speed (G96): S is a cutting speed, not RPM"),
+    ({700, 7000}, {200, 210, 710, 7100}, "inch selected by G70/G700 (Sinumerik, Heidenhain "
+     "ISO): ncopt reads inch from G20 only"),
 )
+# a Heidenhain ISO program in inch: "%NAME G70 *" on its first line (a tape mark, no words)
+INCH_HEADER = re.compile(r"^\s*%\S+\s+G0*70\s*\*", re.I)
 CANNED = {730, 760, 810, 820, 830, 840, 850, 860, 870, 880, 890}
 
 # opaque keywords known not to move the machine (Sinumerik settings)
@@ -569,7 +573,7 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
     seg_known = end_known & prev_known & g93_ok
     seg_known &= (modal.feed_mode[move_lines] != G95) & ~comp[move_lines]
     scaled = _scaled(prog, lines, executed)
-    mode = _modes_not_read(lines, executed)
+    mode = _modes_not_read(prog, lines, executed)
     seg_known &= ~scaled[move_lines] & ~computed_f[move_lines] & ~computed_s[move_lines]
     seg_known &= mode[move_lines] == 0
     if orient is not None:
@@ -601,14 +605,17 @@ def _check_feed(prog, modal, move_lines) -> None:
         _fail(prog, bad[0], "feed move with zero feed rate; add an F word before it")
 
 
-def _modes_not_read(lines, executed) -> np.ndarray:
+def _modes_not_read(prog, lines, executed) -> np.ndarray:
     """(n,) int: 1 + the index in :data:`G_MODES_NOT_READ` of a mode in force on the line
     (the first listed wins), 0 where none is."""
     out = np.zeros(lines.n, dtype=np.int64)
+    first = next((i for i in range(min(prog.n_lines, 5)) if prog.line_text(i).strip()), None)
     for k, (on, off, _) in reversed(list(enumerate(G_MODES_NOT_READ))):
         state = np.full(lines.n, np.nan)
         state[lines.has_g(off)] = 0.0
         state[lines.has_g(on)] = 1.0
+        if 700 in on and first is not None and INCH_HEADER.match(prog.line_text(first)):
+            state[first] = 1.0
         if 71 in on:  # G07.1 C0 (a zero radius) switches cylindrical interpolation off
             state[lines.has_g(on) & (np.nan_to_num(lines.value("C"), nan=1.0) == 0.0)] = 0.0
         state[lines.has_m({2, 30})] = 0.0

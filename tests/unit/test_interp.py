@@ -403,3 +403,16 @@ def test_moves_under_a_mode_ncopt_does_not_read_are_left(on, off, why):
     assert known[4] and not known[6] and not known[7] and known[10]
     assert any(f"-8: not planned ({why}" in w or f"-10: not planned ({why}" in w
                for w in tp.warnings)  # G07.1 C10 is read as a rotary move of its own
+
+
+@pytest.mark.parametrize("text", [
+    "%_N_PART_MPF\nG17 G90 G70\nS1000 M3\nG0 X0 Y0 Z0.2\nG1 Z0 F40\nX1\nY1\nM30\n",
+    "%PART G70 *\nN10 G17 G90 *\nN20 S1000 M03 *\nN30 G00 X+0 Y+0 Z+0.2 *\nN40 G01 Z+0 F40 *\n"
+    "N50 X+1 *\nN60 Y+1 *\nN70 M30 *\nN99999 %PART G70 *\n"])
+def test_inch_by_g70_or_a_heidenhain_header_is_not_read_as_mm(text):
+    """Sinumerik G70 and Heidenhain ISO's "%PART G70 *" select inch; ncopt reads units from
+    G20/G21, so such a program was planned in mm (its 1 inch moves as 1 mm).  Now its moves
+    are left as programmed with the reason."""
+    tp = interpret(parse_text(text))
+    assert not tp.known[1:].any()
+    assert any("not planned (inch selected by G70/G700" in w for w in tp.warnings)
