@@ -49,8 +49,13 @@ G_SPLINE = {50, 51, 52, 53, 62}
 # by G50 / G50.1: their axis words are a centre or the axes mirrored, not a target
 G_SCALE_ON = {510, 511}
 G_SCALE_OFF = {500, 501}
+# moves whose end ncopt cannot know or that are no plain move: Fanuc G27 (reference
+# position check) and G29 (return from it), G31 (skip: stops at a signal), LinuxCNC G33.1
+# (rigid tapping, back out); and Sinumerik poles G110-G112 (the axis words are the pole)
+G_OTHER_MOVES = {270, 290, 310, 331}
+G_POLE = {1100, 1110, 1120}
 G_NOT_A_TARGET = G_NON_MODAL_MOVE | {680, 682, 683, 684, 2680} | G_SPLINE | G_SCALE_ON \
-    | G_SCALE_OFF
+    | G_SCALE_OFF | G_OTHER_MOVES | G_POLE
 # Sinumerik's programmable frame: SCALE/ASCALE and MIRROR/AMIRROR scale or mirror the
 # geometry; TRANS, ROT, SCALE or MIRROR without arguments reset the whole frame
 KW_SCALE = {"SCALE", "ASCALE", "MIRROR", "AMIRROR"}
@@ -447,7 +452,7 @@ def _modal_state(lines: _LineTable, start: StartState, executed: np.ndarray) -> 
 def _unknown_events(prog, lines, modal, executed, poisoned, warnings) -> np.ndarray:
     """(n,) bool: lines after which no axis position can be trusted."""
     event = np.zeros(lines.n, dtype=bool)
-    event |= lines.has_g({280, 300, 530, 920, 921, 922, 923, 520, 281, 301})
+    event |= lines.has_g({280, 300, 530, 920, 921, 922, 923, 520, 281, 301} | G_OTHER_MOVES)
     event |= lines.has_m({6, 98, 99}) | lines.has_g({650, 660} | G_SCALE_ON | G_SCALE_OFF
                                                     | {160, 150, 121, 131, 71})
     event |= np.isin(modal.motion, list(CANNED)) | np.isin(modal.motion, [330, 382, 383, 384, 385])
