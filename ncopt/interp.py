@@ -76,7 +76,17 @@ G_MODES_NOT_READ = (
 INCH_HEADER = re.compile(r"^\s*%\S+\s+G0*70\s*\*", re.I)
 CANNED = {730, 760, 810, 820, 830, 840, 850, 860, 870, 880, 890}
 
-# opaque keywords known not to move the machine (Sinumerik settings)
+# every G code ncopt reads or knows to leave positions, feeds and speeds as written (x10);
+# a line with any other (Haas G12/G13 circle pockets, G45-G48 offsets, Heidenhain ISO's
+# polar G10-G16...) is no move ncopt reads, and the position is lost after it
+G_READ = (G_MOTION | G_PLANE | G_DISTANCE | G_ARC_DISTANCE | G_UNITS | G_FEED_MODE | G_COMP
+          | G_NOT_A_TARGET | CANNED | {740, 150, 160, 121, 131, 71, 960, 970, 700, 7000, 710,
+                                       7100, 711, 712, 720, 721, 722}
+          | {690, 2540, 2550, 2690, 531, 430, 431, 440, 434, 435, 490, 2340}  # frames, lengths
+          | {40, 90, 80, 110, 600, 610, 611, 620, 630, 640, 641, 642, 643, 644, 645, 1870,
+             4500, 4510, 6010, 6020, 6030, 6410, 6420, 6430, 6440, 6450, 250, 260}  # modes
+          | set(range(540, 600)) | {541, 1530, 5000} | set(range(5050, 6000, 10))  # offsets
+          | {650, 660, 670, 980, 990})
 HARMLESS_OPAQUE = {"MSG", "CYCLE832", "DEF", "STOPRE", "WORKPIECE", "SOFT", "BRISK",
                    "FFWON", "FFWOF", "COMPCAD", "COMPON", "COMPOF", "COMPSURF", "G642",
                    "G641", "G64", "TRAFOOF", "UPATH", "SPATH", "FGROUP", "FNORM", "FLIN",
@@ -180,6 +190,12 @@ class _LineTable:
     def has_g(self, codes) -> np.ndarray:
         out = np.zeros(self.n, dtype=bool)
         out[self.g_line[np.isin(self.g_code, list(codes))]] = True
+        return out
+
+    def unread_g(self) -> np.ndarray:
+        """(n,) bool: the line holds a G code outside :data:`G_READ`."""
+        out = np.zeros(self.n, dtype=bool)
+        out[self.g_line[~np.isin(self.g_code, list(G_READ))]] = True
         return out
 
     def has_m(self, codes) -> np.ndarray:
@@ -321,7 +337,7 @@ def _check_semantics(prog: Program, lines: _LineTable, executed: np.ndarray) -> 
         _fail(prog, bad[0], "all axes missing with a probe move (G38.x); give a target")
     r_used = np.isin(motion, [20, 30] + list(CANNED))
     r_used |= lines.has_g({640, 100, 760, 700, 710, 711, 712, 720, 721, 722, 51})  # G05.1 R: level
-    r_used |= lines.has_m({19})
+    r_used |= lines.has_m({19}) | lines.unread_g()  # an unknown code may take R
     bad = np.flatnonzero(lines.present("R") & ~r_used & executed)
     if bad.size:
         _fail(prog, bad[0], "R word with no G code that uses it; remove the R word")
@@ -433,7 +449,7 @@ def _modal_state(lines: _LineTable, start: StartState, executed: np.ndarray) -> 
     spindle_on = np.full(lines.n, np.nan)
     for codes, state in (({3, 4}, 1.0), ({5}, 0.0), ({2, 30}, 0.0)):
         spindle_on[lines.has_m(codes) & executed] = state
-    s_words = np.where(executed, lines.value("S"), np.nan)
+    s_words = np.where(executed & ~lines.has_g({250, 260}), lines.value("S"), np.nan)  # G26 S: a limit
     speed = ffill(s_words, 0.0)
     running = ffill(spindle_on, 0.0) > 0
     t_words = np.where(executed, lines.value("T"), np.nan)
@@ -457,6 +473,13 @@ def _unknown_events(prog, lines, modal, executed, poisoned, warnings) -> np.ndar
                                                     | {160, 150, 121, 131, 71})
     event |= np.isin(modal.motion, list(CANNED)) | np.isin(modal.motion, [330, 382, 383, 384, 385])
     event |= np.isin(modal.comp, [410, 420, 411, 421])
+    unread = lines.unread_g() & executed
+    for i in np.flatnonzero(unread)[:20].tolist():
+        codes = lines.g_code[(lines.g_line == i) & ~np.isin(lines.g_code, list(G_READ))]
+        warnings.append(f"{prog.path}:{i + 1}: G{codes[0] / 10:g} is a G code ncopt does not "
+                        "read; the moves after it keep their S/F until the position is known "
+                        "again")
+    event |= unread
     spline = lines.has_g(G_SPLINE) & executed
     spline &= lines.present("X") | lines.present("Y") | lines.present("Z")
     for i in np.flatnonzero(spline)[:20].tolist():
@@ -488,7 +511,7 @@ def _positions(prog, lines, modal, executed, poisoned, warnings):
     """Absolute positions in mm per line (n,3), whether each axis is known, and (n,) the
     last line at or before each after which no position can be trusted (-1: none)."""
     events = _unknown_events(prog, lines, modal, executed, poisoned, warnings)
-    special = lines.has_g(G_NOT_A_TARGET) | np.isin(modal.motion, list(CANNED))
+    special = lines.has_g(G_NOT_A_TARGET) | lines.unread_g() | np.isin(modal.motion, list(CANNED))
     scale = np.where(modal.inch, MM_PER_INCH, 1.0)
     pos = np.zeros((lines.n, 3))
     known = np.zeros((lines.n, 3), dtype=bool)
@@ -517,7 +540,7 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
     if orient is not None:  # a rotary-only move turns the tool: a move of its own
         axes_present = axes_present | orient.rotary_move
     arc_words = lines.present("I") | lines.present("J") | lines.present("K") | lines.present("R")
-    special = lines.has_g(G_NOT_A_TARGET)
+    special = lines.has_g(G_NOT_A_TARGET) | lines.unread_g()
     is_lin = np.isin(motion, [0, 10]) & axes_present
     is_arc = np.isin(motion, [20, 30]) & (axes_present | arc_words)
     move = (is_lin | is_arc) & executed & ~special & (prog.line_kind == LineKind.WORDS)

@@ -431,3 +431,25 @@ def test_special_moves_and_poles_are_no_plain_moves(block, moves):
     known = dict(zip(tp.line.tolist(), tp.known.tolist()))
     assert 5 not in known and known[4] and known[7]
     assert known[6] == moves
+
+
+@pytest.mark.parametrize("block", ["G12 I5 K10 Q2 Z-1 D1 F50", "G150 X0 Y0 Z-1 Q1 R1 F50",
+                                   "G45 X5"])
+def test_a_g_code_ncopt_does_not_read_is_no_move_and_loses_the_position(block):
+    """Haas G12 (a circular pocket), G150 (a general pocket, R its plane), G45 (tool offset
+    increase): read as a plain G1 to their axis words (G12 planned as a cut), G150 refused
+    for its R word.  Now the line is no move, with a located warning, and the position is
+    known again once a move gives every axis."""
+    text = f"G21 G90\nS1000 M3\nG0 X0 Y0 Z5\nG1 Z0 F100\nX10\n{block}\nG1 X20 Y5 Z0\nX30\nM30\n"
+    tp = interpret(parse_text(text))
+    known = dict(zip(tp.line.tolist(), tp.known.tolist()))
+    assert 5 not in known and known[4] and not known[6] and known[7]
+    code = block.split()[0]
+    assert tp.warnings[0] == f"<input>:6: {code} is a G code ncopt does not read; the moves " \
+        "after it keep their S/F until the position is known again"
+
+
+def test_sinumerik_g26_s_is_a_speed_limit_not_the_spindle_speed():
+    tp = interpret(parse_text("G21 G90\nS1000 M3\nG26 S8000\nG0 X0 Y0 Z5\nG1 Z0 F100\nX10\n"
+                              "M30\n", dialect="sinumerik"))
+    assert set(tp.spindle_rpm[1:].tolist()) == {1000.0}
