@@ -83,7 +83,7 @@ G_READ = (G_MOTION | G_PLANE | G_DISTANCE | G_ARC_DISTANCE | G_UNITS | G_FEED_MO
           | G_NOT_A_TARGET | CANNED | {740, 150, 160, 121, 131, 71, 960, 970, 700, 7000, 710,
                                        7100, 711, 712, 720, 721, 722}
           | {690, 2540, 2550, 2690, 531, 430, 431, 440, 434, 435, 490, 2340}  # frames, lengths
-          | {40, 90, 80, 110, 600, 610, 611, 620, 630, 640, 641, 642, 643, 644, 645, 1870,
+          | {40, 90, 80, 600, 610, 611, 620, 630, 640, 641, 642, 643, 644, 645, 1870,
              4500, 4510, 6010, 6020, 6030, 6410, 6420, 6430, 6440, 6450, 250, 260}  # modes
           | set(range(540, 600)) | {541, 1530, 5000} | set(range(5050, 6000, 10))  # offsets
           | {650, 660, 670, 980, 990})
@@ -468,7 +468,9 @@ def _modal_state(lines: _LineTable, start: StartState, executed: np.ndarray) -> 
 def _unknown_events(prog, lines, modal, executed, poisoned, warnings) -> np.ndarray:
     """(n,) bool: lines after which no axis position can be trusted."""
     event = np.zeros(lines.n, dtype=bool)
-    event |= lines.has_g({280, 300, 530, 920, 921, 922, 923, 520, 281, 301} | G_OTHER_MOVES)
+    # G10: data setting (offsets); Heidenhain ISO's polar rapid: either way a lost position
+    event |= lines.has_g({280, 300, 530, 920, 921, 922, 923, 520, 281, 301, 100}
+                         | G_OTHER_MOVES)
     event |= lines.has_m({6, 98, 99}) | lines.has_g({650, 660} | G_SCALE_ON | G_SCALE_OFF
                                                     | {160, 150, 121, 131, 71})
     event |= np.isin(modal.motion, list(CANNED)) | np.isin(modal.motion, [330, 382, 383, 384, 385])
