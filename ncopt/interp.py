@@ -47,7 +47,7 @@ G_NON_MODAL_MOVE = {280, 300, 530, 920, 921, 922, 923, 520, 100, 281, 301}
 G_SPLINE = {50, 51, 52, 53, 62}
 # Fanuc scaling G51 (P or I J K the factors) and programmable mirror image G51.1, cancelled
 # by G50 / G50.1: their axis words are a centre or the axes mirrored, not a target
-G_SCALE_ON = {510, 511}
+G_SCALE_ON = {510, 511, 720}  # and Heidenhain ISO's G72 scaling factor (a lathe cycle elsewhere)
 G_SCALE_OFF = {500, 501}
 # moves whose end ncopt cannot know or that are no plain move: Fanuc G27 (reference
 # position check) and G29 (return from it), G31 (skip: stops at a signal), LinuxCNC G33.1
@@ -60,7 +60,7 @@ G_NOT_A_TARGET = G_NON_MODAL_MOVE | {680, 682, 683, 684, 2680} | G_SPLINE | G_SC
 # geometry; TRANS, ROT, SCALE or MIRROR without arguments reset the whole frame
 KW_SCALE = {"SCALE", "ASCALE", "MIRROR", "AMIRROR"}
 KW_FRAME_RESET = {"SCALE", "MIRROR", "TRANS", "ROT"}
-SCALED_WHY = ("scaling or a mirror image in force (G51, G51.1, SCALE, MIRROR): ncopt plans "
+SCALED_WHY = ("scaling or a mirror image in force (G51, G51.1, G72, SCALE, MIRROR): ncopt plans "
               "programs as written, unscaled")
 # modes under which the words do not mean what ncopt reads: (on codes, off codes, why);
 # their moves are left as programmed (G07.1 is switched off by G07.1 C0)

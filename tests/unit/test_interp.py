@@ -351,7 +351,8 @@ def test_the_move_after_a_lost_position_starts_nowhere_known(between):
 
 @pytest.mark.parametrize("on, off", [("G51 X0 Y0 P500", "G50"), ("G51.1 X0", "G50.1 X0"),
                                      ("SCALE X0.5 Y0.5", "SCALE"), ("ASCALE X2 Y2", "TRANS"),
-                                     ("MIRROR X0", "MIRROR"), ("AMIRROR Y0", "ROT")])
+                                     ("MIRROR X0", "MIRROR"), ("AMIRROR Y0", "ROT"),
+                                     ("G72 F0.5", "G50")])
 def test_moves_under_a_scaling_or_mirror_image_are_not_planned(on, off):
     """Fanuc G51/G51.1 and Sinumerik SCALE/MIRROR change the geometry the program states
     (a path scaled by 0.5 is steeper, its R_eff larger: S as planned would be too fast):
