@@ -51,7 +51,8 @@ G_SCALE_ON = {510, 511, 720}  # and Heidenhain ISO's G72 scaling factor (a lathe
 G_SCALE_OFF = {500, 501}
 # moves whose end ncopt cannot know or that are no plain move: Fanuc G27 (reference
 # position check) and G29 (return from it), G31 (skip: stops at a signal), LinuxCNC G33.1
-# (rigid tapping, back out); and Sinumerik poles G110-G112 (the axis words are the pole)
+# (rigid tapping, back out); and G110-G112: Sinumerik poles (the axis words are the pole),
+# Haas work offsets (a move on the line is in the new offset): the position is lost
 G_OTHER_MOVES = {270, 290, 310, 331}
 G_POLE = {1100, 1110, 1120}
 G_NOT_A_TARGET = G_NON_MODAL_MOVE | {680, 682, 683, 684, 2680} | G_SPLINE | G_SCALE_ON \
@@ -470,7 +471,7 @@ def _unknown_events(prog, lines, modal, executed, poisoned, warnings) -> np.ndar
     event = np.zeros(lines.n, dtype=bool)
     # G10: data setting (offsets); Heidenhain ISO's polar rapid: either way a lost position
     event |= lines.has_g({280, 300, 530, 920, 921, 922, 923, 520, 281, 301, 100}
-                         | G_OTHER_MOVES)
+                         | G_OTHER_MOVES | G_POLE)
     event |= lines.has_m({6, 98, 99}) | lines.has_g({650, 660} | G_SCALE_ON | G_SCALE_OFF
                                                     | {160, 150, 121, 131, 71})
     event |= np.isin(modal.motion, list(CANNED)) | np.isin(modal.motion, [330, 382, 383, 384, 385])

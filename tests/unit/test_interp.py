@@ -421,12 +421,12 @@ def test_inch_by_g70_or_a_heidenhain_header_is_not_read_as_mm(text):
 
 @pytest.mark.parametrize("block, moves", [("G31 X15 F50", False), ("G27 X0 Y0 Z0", False),
                                           ("G29 X10 Y0", False), ("G33.1 Z-5 K1", False),
-                                          ("G111 X5 Y5", True)])
+                                          ("G111 X5 Y5", False)])
 def test_special_moves_and_poles_are_no_plain_moves(block, moves):
     """A skip (G31 stops at a signal), the reference-position check and return (G27, G29)
     and rigid tapping (G33.1) were read as plain moves in the modal G1, the first planned
-    as a cut; a Sinumerik pole (G111) as a move to the pole.  Now none is a move; after the
-    first four the position is lost, after a pole it is not."""
+    as a cut; a Sinumerik pole (G111, a Haas work offset) as a move to the pole.  Now none
+    is a move, and the position is lost after each."""
     text = f"G21 G90\nS1000 M3\nG0 X0 Y0 Z5\nG1 Z0 F100\nX10\n{block}\nG1 X20 Y5 Z0\nX30\nM30\n"
     tp = interpret(parse_text(text))
     known = dict(zip(tp.line.tolist(), tp.known.tolist()))
