@@ -194,10 +194,11 @@ class _LineTable:
         return out
 
     def unread_g(self) -> np.ndarray:
-        """(n,) bool: the line holds a G code outside :data:`G_READ`."""
-        out = np.zeros(self.n, dtype=bool)
-        out[self.g_line[~np.isin(self.g_code, list(G_READ))]] = True
-        return out
+        """(n,) bool: the line holds a G code outside :data:`G_READ` (computed once)."""
+        if getattr(self, "_unread", None) is None:
+            self._unread = np.zeros(self.n, dtype=bool)
+            self._unread[self.g_line[~np.isin(self.g_code, list(G_READ))]] = True
+        return self._unread
 
     def has_m(self, codes) -> np.ndarray:
         out = np.zeros(self.n, dtype=bool)
@@ -450,7 +451,8 @@ def _modal_state(lines: _LineTable, start: StartState, executed: np.ndarray) -> 
     spindle_on = np.full(lines.n, np.nan)
     for codes, state in (({3, 4}, 1.0), ({5}, 0.0), ({2, 30}, 0.0)):
         spindle_on[lines.has_m(codes) & executed] = state
-    s_words = np.where(executed & ~lines.has_g({250, 260}), lines.value("S"), np.nan)  # G26 S: a limit
+    limit = lines.has_g({250, 260})  # Sinumerik G26 S8000: a spindle limit, not a speed
+    s_words = np.where(executed & ~limit, lines.value("S"), np.nan)
     speed = ffill(s_words, 0.0)
     running = ffill(spindle_on, 0.0) > 0
     t_words = np.where(executed, lines.value("T"), np.nan)
@@ -575,7 +577,8 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
         counts[j] = pts.shape[0]
     computed_f = _computed(prog, lines, executed, "F")
     computed_s = _computed(prog, lines, executed, "S")
-    _check_feed(prog, modal, move_lines[~computed_f[move_lines]])
+    _check_feed(prog, modal,
+                move_lines[~computed_f[move_lines]] if computed_f.any() else move_lines)
     n_pts = int(counts.sum()) + 1
     one_each = n_pts == move_lines.shape[0] + 1  # no arc cut into pieces: nothing to repeat
     xyz = np.zeros((n_pts, 3))
@@ -605,8 +608,9 @@ def _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings,
     seg_known &= (modal.feed_mode[move_lines] != G95) & ~comp[move_lines]
     scaled = _scaled(prog, lines, executed)
     mode = _modes_not_read(prog, lines, executed)
-    seg_known &= ~scaled[move_lines] & ~computed_f[move_lines] & ~computed_s[move_lines]
-    seg_known &= mode[move_lines] == 0
+    not_read = scaled | computed_f | computed_s | (mode > 0)  # per line: one gather below
+    if not_read.any():
+        seg_known &= ~not_read[move_lines]
     if orient is not None:
         seg_known &= orient.blocked[move_lines] == 0
     known_pts = rep(seg_known, False)
@@ -636,22 +640,32 @@ def _check_feed(prog, modal, move_lines) -> None:
         _fail(prog, bad[0], "feed move with zero feed rate; add an F word before it")
 
 
+def _switched(on: np.ndarray, off: np.ndarray, executed: np.ndarray) -> np.ndarray:
+    """(n,) bool: a mode switched on on the lines ``on`` and off on ``off`` (``on`` wins on
+    a line with both) is in force; lines not executed switch nothing."""
+    on, off = on & executed, off & executed
+    if not on.any():  # the usual program: no ffill over its lines
+        return np.zeros(on.shape[0], dtype=bool)
+    state = np.full(on.shape[0], np.nan)
+    state[off] = 0.0
+    state[on] = 1.0
+    return ffill(state, 0.0) > 0
+
+
 def _modes_not_read(prog, lines, executed) -> np.ndarray:
     """(n,) int: 1 + the index in :data:`G_MODES_NOT_READ` of a mode in force on the line
-    (the first listed wins), 0 where none is."""
+    (the first listed wins), 0 where none is; M2/M30 end them all."""
     out = np.zeros(lines.n, dtype=np.int64)
     first = next((i for i in range(min(prog.n_lines, 5)) if prog.line_text(i).strip()), None)
-    for k, (on, off, _) in reversed(list(enumerate(G_MODES_NOT_READ))):
-        state = np.full(lines.n, np.nan)
-        state[lines.has_g(off)] = 0.0
-        state[lines.has_g(on)] = 1.0
-        if 700 in on and first is not None and INCH_HEADER.match(prog.line_text(first)):
-            state[first] = 1.0
-        if 71 in on:  # G07.1 C0 (a zero radius) switches cylindrical interpolation off
-            state[lines.has_g(on) & (np.nan_to_num(lines.value("C"), nan=1.0) == 0.0)] = 0.0
-        state[lines.has_m({2, 30})] = 0.0
-        state[~executed] = np.nan
-        out[ffill(state, 0.0) > 0] = k + 1
+    ends = lines.has_m({2, 30})
+    for k, (codes_on, codes_off, _) in reversed(list(enumerate(G_MODES_NOT_READ))):
+        on, off = lines.has_g(codes_on), lines.has_g(codes_off) | ends
+        if 700 in codes_on and first is not None and INCH_HEADER.match(prog.line_text(first)):
+            on[first] = True
+        if 71 in codes_on:  # G07.1 C0 (a zero radius) switches cylindrical interpolation off
+            zero = on & (np.nan_to_num(lines.value("C"), nan=1.0) == 0.0)
+            on, off = on & ~zero, off | zero
+        out[_switched(on & ~ends, off, executed)] = k + 1
     return out
 
 
@@ -659,33 +673,24 @@ def _scaled(prog, lines, executed) -> np.ndarray:
     """(n,) bool: a scaling or mirror image is in force on the line (Fanuc G51/G51.1 until
     G50/G50.1, Sinumerik SCALE/ASCALE/MIRROR/AMIRROR until the frame is reset; M2/M30 end
     both).  The moves under it are not where the program says, nor the surface as long."""
-    state = np.full(lines.n, np.nan)
-    state[lines.has_g(G_SCALE_OFF)] = 0.0
-    state[lines.has_g(G_SCALE_ON)] = 1.0
+    on, off = lines.has_g(G_SCALE_ON), lines.has_g(G_SCALE_OFF)
     for i, head in prog.opaque_reason.items():
         up = head.upper()
         if up in KW_SCALE or up in KW_FRAME_RESET:
             args = bool(after_keyword(prog.line_text(i), up))
-            if up in KW_SCALE and args:
-                state[i] = 1.0
-            elif up in KW_FRAME_RESET and not args:
-                state[i] = 0.0
-    state[lines.has_m({2, 30})] = 0.0
-    state[~executed] = np.nan
-    return ffill(state, 0.0) > 0
+            on[i] |= up in KW_SCALE and args
+            off[i] |= up in KW_FRAME_RESET and not args
+    ends = lines.has_m({2, 30})
+    return _switched(on & ~ends, off | ends, executed)
 
 
 def _computed(prog, lines, executed, letter: str) -> np.ndarray:
     """(n,) bool: the feed (``letter`` F) or spindle speed (S) in force is a Sinumerik
     assignment ncopt does not evaluate (``F=R1``, ``S=R2*2``), from that line to the next
     such word with a number."""
-    state = np.full(lines.n, np.nan)
-    state[lines.present(letter)] = 0.0
-    for i, head in prog.opaque_reason.items():
-        if head.upper() == letter:
-            state[i] = 1.0
-    state[~executed] = np.nan
-    return ffill(state, 0.0) > 0
+    on = np.zeros(lines.n, dtype=bool)
+    on[[i for i, head in prog.opaque_reason.items() if head.upper() == letter]] = True
+    return _switched(on, lines.present(letter), executed)
 
 
 def _warn_unplanned(prog, move_lines, seg_known, modal, warnings, orient=None,
