@@ -478,6 +478,7 @@ def _unknown_events(prog, lines, modal, executed, poisoned, warnings) -> np.ndar
                                                     | {160, 150, 121, 131, 71})
     event |= np.isin(modal.motion, list(CANNED)) | np.isin(modal.motion, [330, 382, 383, 384, 385])
     event |= np.isin(modal.comp, [410, 420, 411, 421])
+    event |= _offset_changes(lines, executed)
     unread = lines.unread_g() & executed
     for i in np.flatnonzero(unread)[:20].tolist():
         codes = lines.g_code[(lines.g_line == i) & ~np.isin(lines.g_code, list(G_READ))]
@@ -510,6 +511,25 @@ def _unknown_events(prog, lines, modal, executed, poisoned, warnings) -> np.ndar
     event |= lines_l  # Sinumerik L100: subprogram call
     event |= poisoned & (lines.present("X") | lines.present("Y") | lines.present("Z"))
     return event & executed
+
+
+G_WORK_OFFSETS = set(range(540, 600)) | {541, 5000} | set(range(5050, 6000, 10))
+
+
+def _offset_changes(lines, executed) -> np.ndarray:
+    """(n,) bool: lines that select a work offset other than the one in force (G54 ->
+    G55): the moves after them are in another frame.  Re-stating the same one (posts write
+    G54 at every operation) changes nothing."""
+    code = lines.g_group(G_WORK_OFFSETS)
+    code[~executed] = np.nan
+    extended = code == 541  # G54.1 P1..P300: the P word says which
+    code[extended] += np.nan_to_num(lines.value("P")[extended], nan=-1.0) / 1000.0
+    given = np.flatnonzero(~np.isnan(code))
+    out = np.zeros(lines.n, dtype=bool)
+    if given.size > 1:
+        change = code[given[1:]] != code[given[:-1]]
+        out[given[1:][change]] = True
+    return out
 
 
 def _positions(prog, lines, modal, executed, poisoned, warnings):

@@ -454,3 +454,17 @@ def test_sinumerik_g26_s_is_a_speed_limit_not_the_spindle_speed():
     tp = interpret(parse_text("G21 G90\nS1000 M3\nG26 S8000\nG0 X0 Y0 Z5\nG1 Z0 F100\nX10\n"
                               "M30\n", dialect="sinumerik"))
     assert set(tp.spindle_rpm[1:].tolist()) == {1000.0}
+
+
+@pytest.mark.parametrize("first, then, lost", [("G54", "G55", True), ("G54", "G54", False),
+                                               ("G54.1 P1", "G54.1 P2", True),
+                                               ("G54.1 P1", "G54.1 P1", False)])
+def test_a_change_of_work_offset_loses_the_position(first, then, lost):
+    """After G54 -> G55 the next move is in another frame: it was planned from the point
+    before in the old one.  Re-stating the offset in force (posts write G54 at every
+    operation) changes nothing."""
+    text = (f"G21 G90 {first}\nS1000 M3\nG0 X0 Y0 Z5\nG1 Z0 F100\nX10\n{then}\n"
+            "G1 X20 Y5 Z0\nX30\nM30\n")
+    tp = interpret(parse_text(text))
+    known = dict(zip(tp.line.tolist(), tp.known.tolist()))
+    assert known[4] and known[7] and known[6] != lost
