@@ -312,14 +312,13 @@ def _without_point(program: Program) -> np.ndarray:
         motion = _ffill_lines(program.n_lines, program.word_line,
                               g & np.isin(value, _MOTION_AND_CYCLES), value, 0.0)
         cand[k_word & np.isin(motion[program.word_line], _CYCLES)] = False
-    mode_word = cand & np.isin(letter, list(b"QR"))
-    if mode_word.any():  # G05.1 Q1 R5 (AI contour control): a mode and a level, not lengths
-        lines = np.unique(program.word_line[(letter == ord("G")) & (value == 5.1)])
-        cand[mode_word & np.isin(program.word_line, lines)] = False
-    factor = cand & np.isin(letter, list(b"IJK"))
-    if factor.any():  # G51 X Y Z I J K: I J K scale factors, not lengths
-        lines = np.unique(program.word_line[(letter == ord("G")) & (value == 51.0)])
-        cand[factor & np.isin(program.word_line, lines)] = False
+    # words that are no lengths beside these codes: G05.1 Q1 R5 (AI contour control) a mode
+    # and a level, G51 X Y Z I J K (scaling) the factors
+    for code, letters in ((5.1, b"QR"), (51.0, b"IJK")):
+        words = cand & np.isin(letter, list(letters))
+        if words.any():
+            lines = np.unique(program.word_line[(letter == ord("G")) & (value == code)])
+            cand[words & np.isin(program.word_line, lines)] = False
     idx = np.flatnonzero(cand)
     if idx.size == 0:
         return cand

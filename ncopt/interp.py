@@ -80,13 +80,15 @@ CANNED = {730, 760, 810, 820, 830, 840, 850, 860, 870, 880, 890}
 # every G code ncopt reads or knows to leave positions, feeds and speeds as written (x10);
 # a line with any other (Haas G12/G13 circle pockets, G45-G48 offsets, Heidenhain ISO's
 # polar G10-G16...) is no move ncopt reads, and the position is lost after it
+# work offsets: G54-G59.x, G54.1 Pn, Sinumerik G500 and G505-G599
+G_WORK_OFFSETS = set(range(540, 600)) | {541, 5000} | set(range(5050, 6000, 10))
 G_READ = (G_MOTION | G_PLANE | G_DISTANCE | G_ARC_DISTANCE | G_UNITS | G_FEED_MODE | G_COMP
-          | G_NOT_A_TARGET | CANNED | {740, 150, 160, 121, 131, 71, 960, 970, 700, 7000, 710,
-                                       7100, 711, 712, 720, 721, 722}
+          | G_NOT_A_TARGET | CANNED | {740, 711, 712, 720, 721, 722}
+          | set().union(*(on | off for on, off, _ in G_MODES_NOT_READ))
           | {690, 2540, 2550, 2690, 531, 430, 431, 440, 434, 435, 490, 2340}  # frames, lengths
           | {40, 90, 80, 600, 610, 611, 620, 630, 640, 641, 642, 643, 644, 645, 1870,
              4500, 4510, 6010, 6020, 6030, 6410, 6420, 6430, 6440, 6450, 250, 260}  # modes
-          | set(range(540, 600)) | {541, 1530, 5000} | set(range(5050, 6000, 10))  # offsets
+          | G_WORK_OFFSETS | {1530}  # G153: machine coordinates for the block
           | {650, 660, 670, 980, 990})
 HARMLESS_OPAQUE = {"MSG", "CYCLE832", "DEF", "STOPRE", "WORKPIECE", "SOFT", "BRISK",
                    "FFWON", "FFWOF", "COMPCAD", "COMPON", "COMPOF", "COMPSURF", "G642",
@@ -511,9 +513,6 @@ def _unknown_events(prog, lines, modal, executed, poisoned, warnings) -> np.ndar
     event |= lines_l  # Sinumerik L100: subprogram call
     event |= poisoned & (lines.present("X") | lines.present("Y") | lines.present("Z"))
     return event & executed
-
-
-G_WORK_OFFSETS = set(range(540, 600)) | {541, 5000} | set(range(5050, 6000, 10))
 
 
 def _offset_changes(lines, executed) -> np.ndarray:
