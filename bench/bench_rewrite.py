@@ -509,6 +509,15 @@ def _git_state() -> str:
     return f"{head}" + (f" + uncommitted changes in {changed}" if changed else " (clean)")
 
 
+def machine_speed_s() -> float:
+    """CPU seconds of a pure-Python loop of 1e7 additions: how fast the machine is right
+    now (shared machines change speed by half within a day; compare figures with it)."""
+    t0, total = time.process_time(), 0
+    for i in range(10_000_000):
+        total += i
+    return time.process_time() - t0
+
+
 def _header(args, mpf: Path, stl: Path, import_s: float, rec: Recorder) -> None:
     print(f"\n==== case {args.case}: "
           + ("1M blocks of <= 0.11 mm (110 m of path)" if args.case == "dense" else
@@ -524,6 +533,8 @@ def _header(args, mpf: Path, stl: Path, import_s: float, rec: Recorder) -> None:
     print(f"code:    {_git_state()}")
     print(f"load:    {' '.join(f'{x:.2f}' for x in os.getloadavg())} (1/5/15 min load average; "
           "other work on the machine slows the wall times)")
+    print(f"speed:   {machine_speed_s():.2f} s CPU for 1e7 Python additions (the same code's "
+          "wall and CPU figures move with it: read runs of different hours against it)")
     print(f"program: {mpf} ({mpf.stat().st_size / MB:.1f} MB)")
     print(f"mesh:    {stl} ({stl.stat().st_size / MB:.1f} MB)" if stl else
           "mesh:    none (--no-mesh: normals from the toolpath)")

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import planner, plans as _plans
+from . import kdtree, planner, plans as _plans
 from .contacts import Method
 from .controls import ANYWHERE, control_note, default_s_changes
 from .dialect import detect, resolve_decimal_point
@@ -218,6 +218,7 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     (loading while the program is read); None: normals from the toolpath.
     Raises NothingToPlan (exit 5) when no operation of the program can be planned.
     """
+    kdtree.prefetch()  # scipy.spatial loads while the program is parsed
     found = detect(text)
     prog = read_text(text, path, job, found.name)
     tp = interpret(prog, kinematics=job.kinematics)

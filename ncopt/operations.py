@@ -35,9 +35,9 @@ import re
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .interp import row_norms
+from .kdtree import cKDTree
 from .model import Cutter, LineKind, Motion, Program, Toolpath
 
 FINISH_3D, FINISH_ZLEVEL = "3D surface finishing", "Z-level finishing"

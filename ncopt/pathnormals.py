@@ -26,9 +26,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .interp import row_norms
+from .kdtree import cKDTree
 from .model import Contacts, Cutter
 from .threads import available_cpus, map_in_threads
 from .tools import r_eff_mm

@@ -1,0 +1,53 @@
+"""scipy's k-d tree, imported when first needed, and importable in the background.
+
+``import scipy.spatial`` takes about 0.3 s (it loads scipy.sparse, qhull, the
+distance functions and the rotations with it), a third of ncopt's import.  Commands
+that never search neighbours (``--version``, ``profiles``, a rewrite with a mesh
+whose operations need no tree) should not pay it, and a rewrite that will need it
+starts the import in a thread while the program is parsed: most of the parse is
+numpy work that releases the GIL.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+
+_started: threading.Thread | None = None
+_lock = threading.Lock()
+
+
+def cKDTree(*args, **kwargs):
+    """``scipy.spatial.cKDTree(*args, **kwargs)`` (waits for a prefetch under way:
+    Python's import lock makes a second import of a module wait for the first)."""
+    from scipy.spatial import cKDTree as tree
+    return tree(*args, **kwargs)
+
+
+def prefetch() -> None:
+    """Start importing scipy.spatial in a daemon thread (once per process)."""
+    global _started
+    with _lock:
+        if _started is not None:
+            return
+        _started = threading.Thread(target=_import, name="ncopt-import-scipy", daemon=True)
+        _started.start()
+
+
+def _join() -> None:
+    """Before a fork: let the import finish, so no child starts with scipy half
+    imported and its module lock held by a thread the child does not have."""
+    started = _started
+    if started is not None and started.is_alive():
+        started.join()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(before=_join)
+
+
+def _import() -> None:
+    try:
+        import scipy.spatial  # noqa: F401
+    except Exception:  # the caller's own import raises it again, where it is needed
+        pass

@@ -1,0 +1,66 @@
+"""scipy's k-d tree is imported only when needed, and a fork never meets it half imported."""
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from ncopt import kdtree
+
+
+def _run(code: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True,
+                          text=True, timeout=60)
+
+
+def test_importing_the_api_does_not_import_scipy_spatial():
+    done = _run("""
+        import sys
+        import ncopt.api, ncopt.cli
+        print('scipy.spatial' in sys.modules)
+    """)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "False"
+
+
+def test_the_tree_is_scipys():
+    pts = np.random.default_rng(1).random((50, 3))
+    dist, j = kdtree.cKDTree(pts).query(pts[:3], k=2)
+    assert (j[:, 0] == [0, 1, 2]).all() and np.allclose(dist[:, 0], 0.0)
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="fork is what is guarded")
+def test_a_fork_right_after_the_prefetch_gets_a_usable_scipy():
+    # without the at-fork join the child may start with scipy.spatial's module lock held
+    # by the prefetch thread, which the child does not have: its import then hangs
+    done = _run("""
+        import os, sys
+        from ncopt import kdtree
+        kdtree.prefetch()
+        pid = os.fork()
+        if pid == 0:
+            from ncopt.kdtree import cKDTree
+            cKDTree([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]).query([[0.1, 0.0, 0.0]])
+            os._exit(0)
+        _, status = os.waitpid(pid, 0)
+        print(os.waitstatus_to_exitcode(status), 'scipy.spatial' in sys.modules)
+    """)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["0", "True"]
+
+
+def test_prefetch_starts_one_thread_per_process():
+    done = _run("""
+        import threading
+        from ncopt import kdtree
+        kdtree.prefetch(); kdtree.prefetch()
+        print(sum(t.name == 'ncopt-import-scipy' for t in threading.enumerate()) <= 1)
+        kdtree._started.join()
+        import sys
+        print('scipy.spatial' in sys.modules)
+    """)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["True", "True"]
