@@ -1,11 +1,11 @@
 """scipy's k-d tree, imported when first needed, and importable in the background.
 
 ``import scipy.spatial`` takes about 0.3 s (it loads scipy.sparse, qhull, the
-distance functions and the rotations with it), a third of ncopt's import.  Commands
-that never search neighbours (``--version``, ``profiles``, a rewrite with a mesh
-whose operations need no tree) should not pay it, and a rewrite that will need it
-starts the import in a thread while the program is parsed: most of the parse is
-numpy work that releases the GIL.
+distance functions and the rotations with it), about half of ``import ncopt.api``.
+Code that imports ncopt and never searches neighbours (a library user reading
+programs, a rewrite with a mesh whose operations need no tree) does not pay it,
+and a rewrite starts the import in a thread while the program is parsed: most of
+the parse is numpy work that releases the GIL.
 """
 
 from __future__ import annotations
