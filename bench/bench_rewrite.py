@@ -510,8 +510,8 @@ def _git_state() -> str:
 
 
 def machine_speed_s() -> float:
-    """CPU seconds of a pure-Python loop of 1e7 additions: how fast the machine is right
-    now (shared machines change speed by half within a day; compare figures with it)."""
+    """CPU seconds of a pure-Python loop of 1e7 additions: how fast one core is right now
+    (it does not see a shared second core or memory: :func:`two_core_speed_s` does)."""
     t0, total = time.process_time(), 0
     for i in range(10_000_000):
         total += i
@@ -522,13 +522,13 @@ def two_core_speed_s() -> float:
     """Wall seconds of two threads each sorting 4M random floats four times (numpy releases
     the GIL): the other core and the memory, which the one-core loop does not see."""
     import numpy as np
-    from concurrent.futures import ThreadPoolExecutor
+
+    from ncopt.threads import map_in_threads
 
     data = [np.random.default_rng(i).random(4_000_000) for i in range(2)]
-    with ThreadPoolExecutor(2) as pool:
-        t0 = time.perf_counter()
-        list(pool.map(lambda a: [np.sort(a) for _ in range(4)], data))
-        return time.perf_counter() - t0
+    t0 = time.perf_counter()
+    map_in_threads(lambda a: [np.sort(a) for _ in range(4)], data, 2)
+    return time.perf_counter() - t0
 
 
 def _header(args, mpf: Path, stl: Path, import_s: float, rec: Recorder) -> None:
@@ -548,7 +548,8 @@ def _header(args, mpf: Path, stl: Path, import_s: float, rec: Recorder) -> None:
           "other work on the machine slows the wall times)")
     one, both = machine_speed_s(), two_core_speed_s()
     print(f"speed:   {one:.2f} s CPU for 1e7 Python additions on one core; {both:.2f} s wall to "
-          "sort 4M floats 4 times on each of two cores at once (both rise when the machine is shared)")
+          "sort 4M floats 4 times on each of two cores at once (the second also sees a shared "
+          "core or memory)")
     print(f"program: {mpf} ({mpf.stat().st_size / MB:.1f} MB)")
     print(f"mesh:    {stl} ({stl.stat().st_size / MB:.1f} MB)" if stl else
           "mesh:    none (--no-mesh: normals from the toolpath)")
