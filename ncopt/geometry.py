@@ -50,6 +50,11 @@ cores; libigl's AABB tree took 5.0 s wall, 9.8 s CPU): a thread pool spreads
 only the numpy normal work (forked processes were slower than one: 1.27 s
 against 1.01 s serial and 0.67 s in two threads for 1M normals), and queries
 run chunk by chunk.
+
+fcpw and libigl are imported when a mesh is first indexed, not with ncopt: libigl
+loads scipy.sparse with it (about 0.11 s of ``import ncopt.api``), which a rewrite
+without a mesh never uses; with a mesh the import runs in the thread that loads it,
+while the program is parsed.
 """
 
 from __future__ import annotations
@@ -59,8 +64,6 @@ from dataclasses import dataclass
 
 from typing import NamedTuple
 
-import fcpw
-import igl
 import numpy as np
 
 from ncopt import tools
@@ -93,6 +96,7 @@ class Closest(NamedTuple):
 
 def _closest_point_scene(mesh: Mesh):
     """fcpw's closest-point BVH over the mesh (float32 copies of V and F)."""
+    import fcpw
     scene = fcpw.scene_3D()
     scene.set_object_count(1)
     scene.set_object_vertices(np.asfortranarray(mesh.V, dtype=np.float32), 0)
@@ -216,6 +220,7 @@ class MeshIndex:
                  corner_normals: np.ndarray | None = None) -> None:
         if mesh.n_faces == 0:
             raise MeshError("the mesh has no triangles")
+        import igl
         self.mesh = mesh
         self.feature_angle_deg = float(feature_angle_deg)
         self.pool_min_points = pool_min_points
@@ -243,6 +248,7 @@ class MeshIndex:
         release_freed_memory()  # this thread's arena: the main thread cannot reuse it
 
     def _corner_normals(self) -> np.ndarray:
+        import igl
         V, F = self.mesh.V, self.mesh.F
         cn = igl.per_vertex_normals(V, F, igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_ANGLE)[F]
         sharp = np.zeros(V.shape[0], dtype=bool)
@@ -286,6 +292,7 @@ class MeshIndex:
         """
         if P.shape[0] == 0:
             return np.zeros(0), np.zeros(0, np.int64), np.zeros((0, 3))
+        import fcpw
         P = np.ascontiguousarray(P, dtype=np.float64)
         found = fcpw.interaction_3D_list()
         self._scene.find_closest_points(np.asfortranarray(P, dtype=np.float32),

@@ -26,6 +26,39 @@ def test_importing_the_api_does_not_import_scipy_spatial():
     assert done.stdout.strip() == "False"
 
 
+def test_importing_the_api_loads_no_mesh_library():
+    # libigl brings scipy.sparse: ~0.11 s of the import, needed only with a mesh
+    done = _run("""
+        import sys
+        import ncopt.api, ncopt.cli, ncopt.geometry
+        print(sorted(m for m in ('igl', 'fcpw', 'scipy.sparse') if m in sys.modules))
+    """)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"
+
+
+def test_a_mesh_indexed_in_a_thread_while_the_tree_is_prefetched():
+    # both imports load scipy.sparse, from two threads at once: Python's module locks
+    # make one wait for the other
+    done = _run("""
+        import threading
+        import numpy as np
+        from ncopt import kdtree
+        from ncopt.geometry import MeshIndex
+        from ncopt.mesh import Mesh
+        V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+        F = np.array([[0, 1, 2]])
+        got = []
+        t = threading.Thread(target=lambda: got.append(MeshIndex(Mesh(V, F))))
+        kdtree.prefetch()
+        t.start(); t.join()
+        cl = got[0].closest(np.array([[0.2, 0.2, 1.0]]))
+        print(round(float(cl.dist_mm[0]), 6), int(kdtree.cKDTree(V).query(V[1])[1]))
+    """)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["1.0", "1"]
+
+
 def test_the_tree_is_scipys():
     pts = np.random.default_rng(1).random((50, 3))
     dist, j = kdtree.cKDTree(pts).query(pts[:3], k=2)
