@@ -30,7 +30,7 @@ _POW10 = 10.0 ** np.arange(MAX_NUMBER_CHARS + 1)
 
 def number_values(chars, is_digit, digits_upto, run_at, run_last, point_at, point_run):
     """Float values of the number runs (``[sign] digits [. digits]``, consecutive in
-    ``chars`` from ``run_at`` to ``run_last``), exact for runs of up to 15 digits (the
+    ``chars`` from ``run_at`` to ``run_last``, one after the other, covering ``chars``), exact for runs of up to 15 digits (the
     caller reads longer ones otherwise).  ``digits_upto``: running count of digits;
     ``point_at``: where the points are, ``point_run``: in which run."""
     if run_at.size == 0:
@@ -40,9 +40,10 @@ def number_values(chars, is_digit, digits_upto, run_at, run_last, point_at, poin
     after = np.repeat(digits_upto[run_last], run_last + 1 - run_at)
     after -= digits_upto
     np.minimum(after, EXACT_DIGITS, out=after)
-    term = _POW10_INT[after]
+    term = np.take(_POW10_INT, after)  # take: half the time of _POW10_INT[after]
     term *= (chars - ord("0")) * is_digit  # 0 at the sign and the point
-    mantissa = run_sums(np.cumsum(term), term, run_at, run_last)
+    # the runs are consecutive and cover ``chars``: one sum per run, each < 10**16
+    mantissa = np.add.reduceat(term, run_at)
     decimals = np.zeros(run_at.size, dtype=np.int64)
     decimals[point_run] = after[point_at]
     values = mantissa / _POW10[decimals]
