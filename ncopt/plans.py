@@ -15,6 +15,7 @@ tooth stays the programmed one and never rises).
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -222,11 +223,18 @@ def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, sour
     tail = _fixed_line_after(tp, idx, scope, last) if w1 == last + 1 else None
     n = blocks.length_mm.shape[0]
     sep = _separating(tp, idx.first_point[win], blocks, view.sampled)
-    try:
-        emitted, f_mm, _ = _plan_blocks(_with_tail(blocks, tail), machine, cut,
-                                        view.cutter.teeth, opts, _ext(sep, tail, True))
-    except PlanningError as exc:
-        raise PlanningError(exc.message, exc.path or path, exc.line) from None
+    with_tail, sep_tail = _with_tail(blocks, tail), _ext(sep, tail, True)
+    with ThreadPoolExecutor(1, thread_name_prefix="ncopt-other-mode") as pool:
+        # the other --s-changes mode, for its figure only, planned beside this one: one of
+        # the two is a per-block Python loop, the other numpy work that releases the GIL
+        other_plan = pool.submit(_other_mode_plan, with_tail, machine, cut,
+                                 view.cutter.teeth, opts, sep_tail)
+        try:
+            emitted, f_mm, _ = _plan_blocks(with_tail, machine, cut, view.cutter.teeth, opts,
+                                            sep_tail)
+        except PlanningError as exc:
+            raise PlanningError(exc.message, exc.path or path, exc.line) from None
+        other_plan = other_plan.result()
     ext = lambda a, v: np.append(a, v) if tail is not None else a  # noqa: E731
     s_cmd = _back_at_fixed(np.where(ext(planned, False), emitted.s_cmd_rpm,
                                     ext(cmd_rpm[win], tail or 0.0)),
@@ -239,8 +247,7 @@ def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, sour
         s_low, f_mm[:n], feed, s_ref, reduced, blocks.cutting & mine & planned, plunge,
         machine.max_feed_mm_min)
     f = feeds(emitted.s_low_rpm, f_mm)
-    other = _other_mode_time(_with_tail(blocks, tail), machine, cut, view.cutter.teeth, opts,
-                             _ext(sep, tail, True), n, feeds)
+    other = _other_mode_time(other_plan, with_tail, n, feeds, opts)
     return OpPlan(k, op.tool, view.cutter, cut, source, (lo, w1), blocks, s_cmd, f, reduced,
                   f0, emitted.close_s_words,
                   _over_target(blocks, emitted, machine, cut, view.cutter), s0,
@@ -299,16 +306,26 @@ def _separating(tp: Toolpath, fp: np.ndarray, blocks, sampled) -> np.ndarray | N
     return (tp.motion[fp] == Motion.RAPID) | (z >= top - 1e-6)
 
 
-def _other_mode_time(blocks, machine, cut, teeth, opts, sep, n, feeds) -> float:
-    """Minutes of the operation's blocks whose F ncopt sets, in the other --s-changes mode:
-    what the choice costs (``feeds``: the F of the blocks from the spindle's lowest speed
-    and the planner's F)."""
+def _other_mode_plan(blocks, machine, cut, teeth, opts, sep):
+    """The blocks planned in the other --s-changes mode: (emitted, F mm/min), or None
+    where that mode cannot hold the cutting data."""
     other = BETWEEN_PASSES if opts.s_changes in (None, ANYWHERE) else ANYWHERE
     try:
         em, f_mm, _ = _plan_blocks(blocks, machine, cut, teeth, replace(opts, s_changes=other),
                                    sep)
-    except PlanningError:  # that mode cannot hold the cutting data here: no figure
+    except PlanningError:
+        return None
+    return em, f_mm
+
+
+def _other_mode_time(other_plan, blocks, n, feeds, opts) -> float:
+    """Minutes of the operation's blocks whose F ncopt sets, in the other --s-changes mode
+    (``other_plan``: :func:`_other_mode_plan`): what the choice costs (``feeds``: the F of
+    the blocks from the spindle's lowest speed and the planner's F).  NaN: that mode
+    cannot hold the cutting data here."""
+    if other_plan is None:
         return float("nan")
+    em, f_mm = other_plan
     return _feed_time(blocks.length_mm[:n], feeds(em.s_low_rpm[:n], f_mm),
                       opts.f_quantum_mm_min)
 
