@@ -240,17 +240,25 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     del mesh_index  # the largest object of a big job; verification needs memory too
     targets = _targets(prog, tp, idx, work, f_style)
     consumers = _with_fixed_lines(tp, idx, work.scope, targets)
-    edits = plan_edits(prog, consumers, s_style, f_style, work.scope.editable)
-    stamp = (stamp_edit(prog, work.plans, 100.0 * job.options.fz_tolerance)
-             if job.stamp else None)
-    out = apply_edits(text, edits + ([stamp] if stamp else ()))
-    counts = (len(edits), edits.s_words, edits.f_words)
-    del edits  # ~800k strings at 1M blocks: not kept through the verification's peak
+    with ThreadPoolExecutor(1, thread_name_prefix="ncopt-checks") as pool:
+        # numpy work that needs no edit, beside the edits and the splice (Python loops):
+        # the lag check, and the input's side of the verification's comparison
+        lag = pool.submit(_lag_warnings, prog, tp, idx, work, targets, job)
+        masked_input = pool.submit(_masked_input, prog) if job.verify else None
+        edits = plan_edits(prog, consumers, s_style, f_style, work.scope.editable)
+        stamp = (stamp_edit(prog, work.plans, 100.0 * job.options.fz_tolerance)
+                 if job.stamp else None)
+        out = apply_edits(text, edits + ([stamp] if stamp else ()))
+        counts = (len(edits), edits.s_words, edits.f_words)
+        del edits  # ~800k strings at 1M blocks: not kept through the verification's peak
+        lag_warnings = lag.result()
+        masked_input = masked_input.result() if masked_input is not None else None
     if job.verify:
-        verify(prog, tp, out, consumers, s_style, f_style, job, found.name, work.scope)
+        verify(prog, tp, out, consumers, s_style, f_style, job, found.name, work.scope,
+               masked_input)
+    del masked_input
     summary = _summary(prog, tp, idx, work, targets, counts, mesh_edge, job)
-    summary = replace(summary, warnings=summary.warnings + _lag_warnings(prog, tp, idx, work,
-                                                                         targets, job))
+    summary = replace(summary, warnings=summary.warnings + lag_warnings)
     source = job.control_from if job.control else (
         f"detected from {len(found.marks)} mark{'s' if len(found.marks) > 1 else ''}"
         if found.marks else "no marks: generic")
@@ -337,7 +345,8 @@ def _with_fixed_lines(tp: Toolpath, idx: planner.BlockIndex, scope: Scope,
 
 
 def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_style,
-           job: Job, detected: str | None = None, scope: Scope | None = None) -> None:
+           job: Job, detected: str | None = None, scope: Scope | None = None,
+           masked_input: str | None = None) -> None:
     """The checks run after every rewrite; raises VerificationError, writes nothing.
 
     One parse of the output (read as the input was) serves them all: the stamp
@@ -346,11 +355,15 @@ def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_s
     equals the input, so every geometry word is the input's own: the toolpath
     cannot have changed.  Every line ncopt may not edit is byte for byte the input's,
     and the S and F in force at every fixed line are the program's own.
+    ``masked_input``: :func:`_masked_input` of ``prog``, if it was made already.
     """
     out_prog = read_text(out, prog.path, job, detected)
-    in_stamps = sorted(st.line for st in read_stamps(prog).values())
-    out_stamps = sorted(st.line for st in read_stamps(out_prog).values())
-    same = _masked_without(out_prog, out_stamps) == _masked_without(prog, in_stamps)
+    in_stamps = _stamp_lines(prog)
+    out_stamps = _stamp_lines(out_prog)
+    if masked_input is None:
+        masked_input = _masked_input(prog)
+    same = _masked_without(out_prog, out_stamps) == masked_input
+    del masked_input
     if not same:
         raise VerificationError("the rewrite changed more than S and F words; nothing written",
                                 prog.path)
@@ -366,6 +379,16 @@ def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_s
         line = int(np.searchsorted(out_prog.line_start, again[0].start, side="right"))
         raise VerificationError("rewriting the result again would change it; nothing written",
                                 prog.path, line)
+
+
+def _stamp_lines(prog: Program) -> list:
+    """0-based lines of the program's ncopt stamps, in order."""
+    return sorted(st.line for st in read_stamps(prog).values())
+
+
+def _masked_input(prog: Program) -> str:
+    """The input's side of the verification's comparison: S/F words masked, stamps out."""
+    return _masked_without(prog, _stamp_lines(prog))
 
 
 def _kept_lines(prog: Program, drop: list) -> np.ndarray:
