@@ -24,6 +24,7 @@ from .errors import VerificationError
 from .feedmode import inverse_time_words
 from .geometry import MeshIndex, load_stl
 from .interp import ffill, interpret
+from .memory import working_memory
 from .model import Cutter, CuttingData, Machine, Motion, PlanOptions, Program, Toolpath
 from .parse import parse_text
 from .pathnormals import NO_CROSS, ONE_SIDED
@@ -167,6 +168,11 @@ class Result:
 def rewrite_file(path: str | Path, job: Job, mesh_path: str | Path | None = None,
                  data: bytes | None = None) -> Result:
     """Read a program (or use ``data`` as its bytes) and rewrite it."""
+    with working_memory():  # from the mesh thread's start (ncopt.memory)
+        return _rewrite_file(path, job, mesh_path, data)
+
+
+def _rewrite_file(path, job: Job, mesh_path, data) -> Result:
     if data is None:
         data = Path(path).read_bytes()
     if mesh_path is None:
@@ -218,6 +224,11 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     (loading while the program is read); None: normals from the toolpath.
     Raises NothingToPlan (exit 5) when no operation of the program can be planned.
     """
+    with working_memory():  # freed memory stays for the next stage (ncopt.memory)
+        return _rewrite_text(text, job, path, mesh_index)
+
+
+def _rewrite_text(text: str, job: Job, path: str, mesh_index) -> Result:
     kdtree.prefetch()  # scipy.spatial loads while the program is parsed
     found = detect(text)
     prog = read_text(text, path, job, found.name)

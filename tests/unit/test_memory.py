@@ -1,13 +1,18 @@
-"""Freed memory handed back between stages (glibc's malloc_trim)."""
+"""Freed memory handed back between stages (glibc's malloc_trim), and kept in the
+process while a rewrite runs."""
 
 from __future__ import annotations
 
 import platform
+import subprocess
 import sys
+import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from ncopt import memory
 from ncopt.memory import _malloc_trim, release_freed_memory
 
 
@@ -35,3 +40,78 @@ def test_freed_heap_pages_go_back_to_the_system():
 def test_release_is_harmless_anywhere():
     release_freed_memory()
     release_freed_memory()
+
+
+_GLIBC = sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc"
+
+
+@pytest.mark.skipif(not _GLIBC, reason="the thresholds are glibc's")
+def test_while_a_rewrite_runs_large_arrays_come_from_the_heap():
+    # in a fresh process: glibc's threshold has not grown yet, so a 24 MB array gets a
+    # mapping of its own; held, the next one comes from the heap
+    code = textwrap.dedent("""
+        import ctypes, numpy as np
+        from ncopt import memory
+        class Info(ctypes.Structure):
+            _fields_ = [(n, ctypes.c_size_t) for n in ("arena", "ordblks", "smblks", "hblks",
+                        "hblkhd", "usmblks", "fsmblks", "uordblks", "fordblks", "keepcost")]
+        libc = ctypes.CDLL(None)
+        libc.mallinfo2.restype = Info
+        mapped = lambda: libc.mallinfo2().hblkhd
+        m0 = mapped(); own = np.ones(3 << 20); m1 = mapped()
+        with memory.working_memory():
+            held = np.ones(3 << 20); m2 = mapped()
+        print((m1 - m0) >> 20, (m2 - m1) >> 20)
+    """)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["24", "0"]
+
+
+@pytest.mark.skipif(not _GLIBC, reason="malloc_trim is glibc's")
+def test_freed_memory_stays_while_held_and_goes_back_after():
+    kept = [np.ones(1 << 17) for _ in range(200)]  # 200 x 1 MB
+    with memory.working_memory():
+        assert memory.holding()
+        kept = kept[1::2]  # holes: ~100 MB freed
+        rss = _rss_kb()
+        release_freed_memory()  # does nothing while held
+        assert _rss_kb() > rss - 10_000
+    assert not memory.holding()
+    release_freed_memory()
+    assert _rss_kb() < rss - 50_000
+    assert len(kept) == 100
+
+
+def test_working_memory_nests_and_ends_on_errors():
+    with memory.working_memory():
+        with memory.working_memory():
+            assert memory.holding()
+        assert memory.holding()
+    assert not memory.holding()
+    with pytest.raises(ZeroDivisionError):
+        with memory.working_memory():
+            1 / 0
+    assert not memory.holding()
+
+
+def test_a_rewrite_holds_its_memory_from_parse_to_verification(monkeypatch):
+    from ncopt import api
+    from ncopt.model import Cutter, Machine
+
+    seen = []
+    for name in ("read_text", "interpret", "verify"):
+        real = getattr(api, name)
+
+        def spy(*a, _real=real, _name=name, **k):
+            seen.append((_name, memory.holding()))
+            return _real(*a, **k)
+        monkeypatch.setattr(api, name, spy)
+    text = Path(__file__).resolve().parents[2].joinpath("samples", "bowl.mpf").read_bytes()
+    job = api.Job(cutter=Cutter(16.0, 2), machine=Machine(accel_rad_s2=227.0, max_rpm=15000.0))
+    api.rewrite_text(text[:120_000].decode("latin-1").rsplit("\n", 1)[0] + "\nM30\n", job,
+                     "bowl.mpf")
+    assert [n for n, _ in seen] == ["read_text", "interpret", "verify", "read_text"]
+    assert all(h for _, h in seen)
+    assert not memory.holding()
