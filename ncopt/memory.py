@@ -8,17 +8,20 @@ of 1M blocks allocates and frees several GB of numpy temporaries on a peak of ~1
 while one runs (:func:`working_memory`) glibc keeps what is freed for the next stage:
 
 * arrays of up to 32 MB come from the heap, not from a fresh mapping each (glibc's
-  ``M_MMAP_THRESHOLD``; its own default grows there only after the first large frees);
+  ``M_MMAP_THRESHOLD``; its own grows there only after the first large frees);
 * freed heap memory is not handed back (``M_TRIM_THRESHOLD``), and
   :func:`release_freed_memory` does nothing;
 * at most two arenas (``M_ARENA_MAX``): a thread's freed memory is reused by the
   others, so the peak does not grow by what each thread holds.
 
-Measured on the dense 1M-block case without a mesh, eight alternating runs each:
-system time 1.65-2.62 s -> 1.21-1.43 s, whole process 8.1-10.5 s -> 8.0-9.0 s, peak RSS
-1.00-1.08 GB -> 1.00-1.05 GB.  When the last rewrite running ends, the thresholds are
-set back to glibc's defaults (the heap's free top is then handed back at the next free);
-the limit of two arenas stays, as glibc cannot take back arenas it made.
+Measured on the dense 1M-block case without a mesh, four alternating runs each:
+system time 1.62-2.46 s -> 1.21-1.49 s, whole process 8.38-9.45 s -> 7.73-8.39 s, peak
+RSS 1.02-1.07 GB either way.  When the last rewrite running ends, the trim threshold is
+set back to glibc's default (the heap's free top is then handed back at the next free,
+and :func:`release_freed_memory` hands back the rest).  The mmap threshold stays at 32 MB,
+where glibc's own would have grown after the first large frees (setting it turns that
+growth off for good), and so does the limit of two arenas (glibc keeps the arenas it
+made).
 
 Outside a rewrite, :func:`release_freed_memory` hands freed memory back between
 stages (``malloc_trim``), as a long-running process wants.
@@ -37,7 +40,7 @@ M_TRIM_THRESHOLD, M_MMAP_THRESHOLD, M_ARENA_MAX = -1, -3, -8
 HELD_MMAP_THRESHOLD = 32 << 20  # glibc's largest (HEAP_MAX_SIZE / 2 on 64-bit)
 HELD_TRIM_THRESHOLD = 2**31 - 1  # mallopt takes an int: 2 GB, above any peak here
 HELD_ARENAS = 2
-DEFAULT_THRESHOLD = 128 << 10  # glibc's default trim and mmap thresholds
+DEFAULT_TRIM_THRESHOLD = 128 << 10  # glibc's default
 
 _lock = threading.Lock()
 _depth = 0
@@ -94,5 +97,4 @@ def working_memory():
         with _lock:
             _depth -= 1
             if _depth == 0 and libc is not None:
-                libc.mallopt(M_MMAP_THRESHOLD, DEFAULT_THRESHOLD)
-                libc.mallopt(M_TRIM_THRESHOLD, DEFAULT_THRESHOLD)
+                libc.mallopt(M_TRIM_THRESHOLD, DEFAULT_TRIM_THRESHOLD)
