@@ -208,7 +208,10 @@ def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index:
     contact moves along the ball as the axis turns, which the adaptive refinement
     (built on a fixed axis) does not look for.
     """
-    release_freed_memory()  # the interpreter's and the mesh loading's leftovers
+    # the interpreter's and the mesh loading's leftovers; while a rewrite holds its memory
+    # (ncopt.memory) only beside a mesh, the largest object, which is alive until the end
+    # of the planning
+    release_freed_memory(force=mesh_index is not None)
     if mesh_index is not None and tp.tool_axis is not None:
         sample_mm = min(sample_mm, AXIS_SAMPLE_MM)
         xyz, point = sample_points(tp, sample_mm)
@@ -235,7 +238,7 @@ def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index:
         sampled = Sampled(contacts, np.arange(tp.n), estimate, axis=tp.tool_axis)
     if method.name == "material":
         sampled = replace(sampled, contacts=_with_material(tp, cutter, sampled, method))
-    release_freed_memory()
+    release_freed_memory(force=mesh_index is not None)
     return sampled
 
 

@@ -245,7 +245,7 @@ class MeshIndex:
         for k in range(3):  # unit corner normals; the facet's where one is unusable
             _unit_or(cn[:, k], self.face_normal)
         self.corner_normal = cn
-        release_freed_memory()  # this thread's arena: the main thread cannot reuse it
+        release_freed_memory(force=True)  # this thread's arena: the main thread cannot reuse it
 
     def _corner_normals(self) -> np.ndarray:
         import igl

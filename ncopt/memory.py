@@ -5,14 +5,19 @@ memory it reuses: on the 2-core machine of the benchmarks, filling 1 GB took 1.9
 system time the first time and 0.11-0.15 s when the same process filled it again (the
 host backs the guest's pages lazily and takes back the ones the guest frees).  A rewrite
 of 1M blocks allocates and frees several GB of numpy temporaries on a peak of ~1 GB, so
-while one runs (:func:`working_memory`) glibc keeps what is freed for the next stage:
+from its parse to its edits (:func:`working_memory`) glibc keeps what is freed for the
+next stage:
 
 * arrays of up to 32 MB come from the heap, not from a fresh mapping each (glibc's
   ``M_MMAP_THRESHOLD``; its own grows there only after the first large frees);
 * freed heap memory is not handed back (``M_TRIM_THRESHOLD``), and
-  :func:`release_freed_memory` does nothing;
+  :func:`release_freed_memory` does nothing unless forced;
 * at most two arenas (``M_ARENA_MAX``): a thread's freed memory is reused by the
   others, so the peak does not grow by what each thread holds.
+
+It is handed back (forced) where keeping it would raise the peak: when the mesh thread
+has built the mesh (its arena), around the contacts while a mesh is alive, and before
+the verification, which is the peak of a rewrite and runs without the hold.
 
 Measured on the dense 1M-block case without a mesh, four alternating runs each:
 system time 1.62-2.46 s -> 1.21-1.49 s, whole process 8.38-9.45 s -> 7.73-8.39 s, peak
@@ -66,11 +71,12 @@ def _malloc_trim():
     return None if libc is None else libc.malloc_trim
 
 
-def release_freed_memory() -> None:
+def release_freed_memory(force: bool = False) -> None:
     """Return the memory freed so far to the operating system, where the C library can;
-    nothing while a rewrite holds it (:func:`working_memory`)."""
+    while a rewrite holds it (:func:`working_memory`), only with ``force`` (memory another
+    thread freed, in an arena the calling thread's next stages do not use)."""
     trim = _malloc_trim()
-    if trim is not None and _depth == 0:
+    if trim is not None and (_depth == 0 or force):
         trim(0)
 
 

@@ -338,7 +338,8 @@ def apply_edits(text: str, edits) -> str:
     parts[1::2] = list(map(edits.text.__getitem__, order.tolist()))
     out = "".join(parts)
     del parts, keep_from, keep_to
-    release_freed_memory()  # the planning's and the edits' leftovers, before verification
+    release_freed_memory(force=True)  # the leftovers of the planning and the edits: the
+    # verification, the peak of a rewrite, reuses the address space, not its pages
     return out
 
 

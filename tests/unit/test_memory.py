@@ -96,7 +96,7 @@ def test_working_memory_nests_and_ends_on_errors():
     assert not memory.holding()
 
 
-def test_a_rewrite_holds_its_memory_from_parse_to_verification(monkeypatch):
+def test_a_rewrite_holds_its_memory_up_to_the_verification(monkeypatch):
     from ncopt import api
     from ncopt.model import Cutter, Machine
 
@@ -112,6 +112,38 @@ def test_a_rewrite_holds_its_memory_from_parse_to_verification(monkeypatch):
     job = api.Job(cutter=Cutter(16.0, 2), machine=Machine(accel_rad_s2=227.0, max_rpm=15000.0))
     api.rewrite_text(text[:120_000].decode("latin-1").rsplit("\n", 1)[0] + "\nM30\n", job,
                      "bowl.mpf")
-    assert [n for n, _ in seen] == ["read_text", "interpret", "verify", "read_text"]
-    assert all(h for _, h in seen)
+    # the verification (and its parse of the output) is the peak: it hands memory back
+    assert seen == [("read_text", True), ("interpret", True), ("verify", False),
+                    ("read_text", False)]
     assert not memory.holding()
+
+
+def test_the_mesh_is_freed_once_the_contacts_are_found(monkeypatch, bowl_stl):
+    # ~700 MB at 1M triangles: nothing may keep it through the edits and the verification
+    import gc
+    import weakref
+    from concurrent.futures import ThreadPoolExecutor
+
+    from ncopt import api
+    from ncopt.geometry import MeshIndex, load_stl
+    from ncopt.model import Cutter, Machine
+
+    alive, refs = [], []
+    real = api._targets
+
+    def spy(*a, **k):  # called right after the contacts
+        gc.collect()
+        alive.append(refs[0]() is not None)
+        return real(*a, **k)
+    monkeypatch.setattr(api, "_targets", spy)
+
+    def load():
+        index = MeshIndex(load_stl(bowl_stl))
+        refs.append(weakref.ref(index))
+        return index
+    text = Path(__file__).resolve().parents[2].joinpath("samples", "bowl.mpf").read_bytes()
+    text = text[:120_000].decode("latin-1").rsplit("\n", 1)[0] + "\nM30\n"
+    job = api.Job(cutter=Cutter(16.0, 2), machine=Machine(accel_rad_s2=227.0, max_rpm=15000.0))
+    with ThreadPoolExecutor(1) as pool:  # as rewrite_file passes it: no other reference
+        api.rewrite_text(text, job, "bowl.mpf", pool.submit(load))
+    assert alive == [False]
