@@ -309,8 +309,15 @@ def _fast_path_chunked(raw, line_start, content_end, classes):
         return f, bl, (w[0] + a, w[1], w[2], w[3] + base, w[4] + base, w[5] + base)
 
     done = map_in_threads(chunk, range(0, n_lines, FAST_CHUNK_LINES), _THREADS)
-    words = tuple(np.concatenate([d[2][k] for d in done]) for k in range(6))
-    return np.concatenate([d[0] for d in done]), np.concatenate([d[1] for d in done]), words
+    fast, blank = np.concatenate([d[0] for d in done]), np.concatenate([d[1] for d in done])
+    parts = [list(d[2]) for d in done]
+    del done
+    words = []
+    for k in range(6):  # field by field, each chunk's part freed once joined: the peak
+        words.append(np.concatenate([p[k] for p in parts]))  # holds one field twice, not six
+        for p in parts:
+            p[k] = None
+    return fast, blank, tuple(words)
 
 
 # Two threads take most of the gain; more would multiply the chunks' memory (and
