@@ -68,6 +68,7 @@ import numpy as np
 
 from ncopt import tools
 from ncopt.errors import MeshError
+from ncopt.interp import row_norms
 from ncopt.memory import release_freed_memory
 from ncopt.mesh import (EdgeLengths, Mesh, load_stl, mesh_from_triangles,  # noqa: F401
                         mesh_resolution_mm, spatial_order)
@@ -151,7 +152,7 @@ def _closest_on_edges(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
         dd = _dot(d, d)
         t = np.clip(np.divide(_dot(p - a, d), dd, out=np.zeros_like(dd), where=dd > 0), 0.0, 1.0)
         q = a + t[:, None] * d
-        dist = np.linalg.norm(p - q, axis=1)
+        dist = _norms(p - q)
         if best is None:
             best, best_d = q, dist
         else:
@@ -160,16 +161,24 @@ def _closest_on_edges(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
     return best
 
 
+def _norms(v: np.ndarray) -> np.ndarray:
+    """Length of each row of ``v`` (m, 3): ``np.linalg.norm(v, axis=-1)``, the same sums in
+    the same order, 2-3 times faster for float64 rows of 3 (:func:`ncopt.interp.row_norms`)."""
+    if v.ndim == 2 and v.shape[1] == 3 and v.dtype == np.float64:
+        return row_norms(v)
+    return np.linalg.norm(v, axis=-1)
+
+
 def _unit(v: np.ndarray) -> np.ndarray:
     """Rows scaled to unit length; zero rows stay zero."""
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    n = _norms(v)[..., None]
     return np.divide(v, n, out=np.zeros_like(v), where=n > 0)
 
 
 def _unit_or(v: np.ndarray, fallback: np.ndarray) -> None:
     """Scale rows of ``v`` to unit length in place; rows that are not finite or
     shorter than 0.5 become the rows of ``fallback``."""
-    length = np.linalg.norm(v, axis=1)
+    length = _norms(v)
     bad = ~(length >= 0.5)  # NaN too
     inf = np.flatnonzero(np.isinf(length))  # an infinite coordinate, or only huge ones
     bad[inf] = ~np.all(np.isfinite(v[inf]), axis=1)
@@ -302,7 +311,7 @@ class MeshIndex:
         face[lost] = 0
         point = _closest_on_triangles(P, self.mesh.V[self.mesh.F[face]])
         point[lost] = np.nan
-        return np.linalg.norm(P - point, axis=1), face, point
+        return _norms(P - point), face, point
 
     def closest(self, points_mm: np.ndarray) -> Closest:
         """Closest mesh point of each query point ``(m, 3)``, in chunks, in order
@@ -466,7 +475,7 @@ def _fixed_point(index: MeshIndex, centers: np.ndarray, flat_mm: float, best: Cl
     core, current = centers.copy(), Closest(*(a[rows] for a in best))
     for _ in range(_FIXED):
         new = _core_points(centers[rows], _unit(core[rows] - current.point_mm), flat_mm)
-        moved = np.linalg.norm(new - core[rows], axis=1) > 1e-3
+        moved = _norms(new - core[rows]) > 1e-3
         core[rows] = new
         rows = rows[moved]
         if rows.size == 0:

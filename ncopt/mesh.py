@@ -16,6 +16,7 @@ from stl import Mode
 from stl import mesh as stl_mesh
 
 from ncopt.errors import MeshError
+from ncopt.interp import row_norms
 
 _STL_READ_ERRORS = (ValueError, RuntimeError, AssertionError, OSError, IndexError, UnicodeError)
 
@@ -239,7 +240,7 @@ def mesh_resolution_mm(mesh: Mesh) -> EdgeLengths:
     lengths = np.empty((3, F.shape[0]))  # edge k from corner k to k+1, corner by corner
     corner = [V[F[:, k]] for k in range(3)]
     for k in range(3):
-        lengths[k] = np.linalg.norm(corner[k] - corner[(k + 1) % 3], axis=1)
+        lengths[k] = row_norms(corner[k] - corner[(k + 1) % 3])  # np.linalg.norm's sums
     del corner
     lengths = lengths.ravel()
     if lengths.size == 0:
