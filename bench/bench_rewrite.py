@@ -396,11 +396,12 @@ def end_to_end(mpf: str, stl: str) -> None:
     t0 = time.perf_counter()
     from ncopt.api import rewrite_file
 
-    t1, c1 = time.perf_counter(), Recorder._cpu()
+    t1, c1, s1 = time.perf_counter(), Recorder._cpu(), os.times().system
     result = rewrite_file(mpf, sample_job(), mesh_path=None if stl == "-" else stl)
-    t2, c2 = time.perf_counter(), Recorder._cpu()
+    t2, c2, s2 = time.perf_counter(), Recorder._cpu(), os.times().system
     print(json.dumps({
-        "import_s": t1 - t0, "rewrite_s": t2 - t1, "cpu_s": c2 - c1, "edits": result.summary.edits,
+        "import_s": t1 - t0, "rewrite_s": t2 - t1, "cpu_s": c2 - c1, "system_s": s2 - s1,
+        "edits": result.summary.edits,
         "sha256": hashlib.sha256(result.text.encode("latin-1")).hexdigest(),
         "peak_rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024.0,
         "child_peak_rss": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024.0}))
@@ -457,7 +458,8 @@ def print_targets(wall_s: float, rec: Recorder, pss: PssSampler, summary, e2e: d
         print("peak PSS with workers: no worker processes ran")
     if e2e is not None:
         print(f"\napi.rewrite_file, no hooks, fresh process: {e2e['rewrite_s']:.3f} s, "
-              f"cpu {e2e['cpu_s']:.3f} s (+ import {e2e['import_s']:.3f} s; whole process "
+              f"cpu {e2e['cpu_s']:.3f} s, of it system {e2e['system_s']:.2f} s (+ import "
+              f"{e2e['import_s']:.3f} s; whole process "
               f"{e2e['process_s']:.3f} s), peak RSS {e2e['peak_rss'] / MB:.1f} MB, largest "
               f"worker {e2e['child_peak_rss'] / MB:.1f} MB, {e2e['edits']:,} edits")
     if profiled:
