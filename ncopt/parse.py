@@ -29,7 +29,7 @@ from lark.exceptions import UnexpectedInput
 
 from .dialect import DIALECTS, FANUC, GENERIC, GRBL
 from .errors import NcParseError, UsageError
-from .memory import release_freed_memory
+from .memory import release_freed_memory, working_memory
 from .model import VECTOR_WORD_CODES, LineKind, Program
 from .numtext import EXACT_DIGITS, MAX_NUMBER_CHARS, number_values, parse_numbers, run_sums
 from .refuse import caret_context, check_text, klartext_what, looks_like_klartext
@@ -308,7 +308,8 @@ def _fast_path_chunked(raw, line_start, content_end, classes):
                               content_end[a:b] - base, classes)
         return f, bl, (w[0] + a, w[1], w[2], w[3] + base, w[4] + base, w[5] + base)
 
-    done = map_in_threads(chunk, range(0, n_lines, FAST_CHUNK_LINES), _THREADS)
+    with working_memory():  # each chunk's temporaries reuse the freed ones of the last
+        done = map_in_threads(chunk, range(0, n_lines, FAST_CHUNK_LINES), _THREADS)
     fast, blank = np.concatenate([d[0] for d in done]), np.concatenate([d[1] for d in done])
     parts = [list(d[2]) for d in done]
     del done
@@ -317,6 +318,7 @@ def _fast_path_chunked(raw, line_start, content_end, classes):
         words.append(np.concatenate([p[k] for p in parts]))  # holds one field twice, not six
         for p in parts:
             p[k] = None
+        release_freed_memory()  # (unless a rewrite holds its memory: then it is reused)
     return fast, blank, tuple(words)
 
 
