@@ -17,11 +17,12 @@ next stage:
 
 It is handed back (forced) where keeping it would raise the peak: when the mesh thread
 has built the mesh (its arena), around the contacts while a mesh is alive, and before
-the verification, which is the peak of a rewrite and runs without the hold.
+the verification, which is the peak of a rewrite and runs without the hold (but for the
+chunks of its parse, :func:`ncopt.parse.parse_text`, which reuse each other's memory).
 
-Measured on the dense 1M-block case without a mesh, four alternating runs each:
-system time 1.62-2.46 s -> 1.21-1.49 s, whole process 8.38-9.45 s -> 7.73-8.39 s, peak
-RSS 1.02-1.07 GB either way.  When the last rewrite running ends, the trim threshold is
+Measured on the dense 1M-block case without a mesh, five alternating pairs against the
+rewrite without any of this: whole process median 8.80 -> 8.21 s, system time 1.74-2.28
+-> 1.38-2.03 s, peak RSS 1.03-1.10 -> 0.95-0.99 GB.  When the last rewrite running ends, the trim threshold is
 set back to glibc's default (the heap's free top is then handed back at the next free,
 and :func:`release_freed_memory` hands back the rest).  The mmap threshold stays at 32 MB,
 where glibc's own would have grown after the first large frees (setting it turns that
@@ -73,8 +74,8 @@ def _malloc_trim():
 
 def release_freed_memory(force: bool = False) -> None:
     """Return the memory freed so far to the operating system, where the C library can;
-    while a rewrite holds it (:func:`working_memory`), only with ``force`` (memory another
-    thread freed, in an arena the calling thread's next stages do not use)."""
+    while a rewrite holds it (:func:`working_memory`), only with ``force`` (where keeping
+    it would raise the peak: a mesh's, or everything before the verification)."""
     trim = _malloc_trim()
     if trim is not None and (_depth == 0 or force):
         trim(0)
