@@ -22,9 +22,11 @@ chunks of its parse, :func:`ncopt.parse.parse_text`, which reuse each other's me
 
 Measured on the dense 1M-block case without a mesh, five alternating pairs against the
 rewrite without any of this: whole process median 8.80 -> 8.21 s, system time 1.74-2.28
--> 1.38-2.03 s, peak RSS 1.03-1.10 -> 0.95-0.99 GB.  When the last rewrite running ends, the trim threshold is
-set back to glibc's default (the heap's free top is then handed back at the next free,
-and :func:`release_freed_memory` hands back the rest).  The mmap threshold stays at 32 MB,
+-> 1.38-2.03 s, peak RSS 1.03-1.10 -> 0.95-0.99 GB.
+
+When the last rewrite running ends, the trim threshold is set back to glibc's default
+(the heap's free top is then handed back at the next free, and
+:func:`release_freed_memory` hands back the rest).  The mmap threshold stays at 32 MB,
 where glibc's own would have grown after the first large frees (setting it turns that
 growth off for good), and so does the limit of two arenas (glibc keeps the arenas it
 made).

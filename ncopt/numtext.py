@@ -31,8 +31,9 @@ _POW10 = 10.0 ** np.arange(MAX_NUMBER_CHARS + 1)
 def number_values(chars, is_digit, digits_upto, run_at, run_last, point_at, point_run):
     """Float values of the number runs (``[sign] digits [. digits]``, consecutive in
     ``chars`` from ``run_at`` to ``run_last``, one after the other, covering ``chars``),
-    exact for runs of up to 15 digits (the caller reads longer ones otherwise).  ``digits_upto``: running count of digits;
-    ``point_at``: where the points are, ``point_run``: in which run."""
+    exact for runs of up to 15 digits (the caller reads longer ones otherwise).
+    ``digits_upto``: running count of digits; ``point_at``: where the points are,
+    ``point_run``: in which run."""
     if run_at.size == 0:
         return np.zeros(0, dtype=np.float64)
     # per character: the digits after it in its run (a digit's power of ten; at the
