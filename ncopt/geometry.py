@@ -47,9 +47,9 @@ period) the lowest can be missed (clearance up to 0.11 mm high; 15 % of the
 near-contact points taken for air).  The closest-point query (fcpw) uses every
 core itself (1M path-ordered points, 1M triangles: 2.6 s wall, 5.1 s CPU on 2
 cores; libigl's AABB tree took 5.0 s wall, 9.8 s CPU): a thread pool spreads
-only the numpy normal work (forked processes were slower than one: 1.27 s
-against 1.01 s serial and 0.67 s in two threads for 1M normals), and queries
-run chunk by chunk.
+only the numpy work (forked processes were slower than one: 1.27 s against
+1.01 s serial and 0.67 s in two threads for 1M normals), and the queries run
+in calls of up to 1M points (:meth:`MeshIndex._faces`).
 
 fcpw and libigl are imported when a mesh is first indexed, not with ncopt: libigl
 loads scipy.sparse with it (about 0.11 s of ``import ncopt.api``), which a rewrite
@@ -60,6 +60,7 @@ while the program is parsed.
 from __future__ import annotations
 
 import functools
+import operator
 from dataclasses import dataclass
 
 from typing import NamedTuple
@@ -192,6 +193,9 @@ def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.einsum("ij,ij->i", a, b)
 
 
+_PRIMITIVE = operator.attrgetter("primitive_index")
+
+
 class MeshIndex:
     """A mesh with its closest-point BVH and the normals the contact search needs.
 
@@ -207,6 +211,8 @@ class MeshIndex:
         serial.  Both give identical results.
     chunk_points : int
         Points per chunk: bounds the temporaries; the pool's unit of work.
+    query_points : int
+        Points per closest-point call (:meth:`_faces`): ~60 bytes each while it runs.
     processes : int or None
         Pool size (threads); default: the CPUs this process may use.
     corner_normals : (nf, 3, 3) float64 or None
@@ -225,7 +231,7 @@ class MeshIndex:
 
     def __init__(self, mesh: Mesh, *, feature_angle_deg: float = 40.0,
                  pool_min_points: int | None = 200_000, chunk_points: int = 65_536,
-                 processes: int | None = None,
+                 query_points: int = 1 << 20, processes: int | None = None,
                  corner_normals: np.ndarray | None = None) -> None:
         if mesh.n_faces == 0:
             raise MeshError("the mesh has no triangles")
@@ -234,6 +240,7 @@ class MeshIndex:
         self.feature_angle_deg = float(feature_angle_deg)
         self.pool_min_points = pool_min_points
         self.chunk_points = max(1, int(chunk_points))
+        self.query_points = max(1, int(query_points))
         self.processes = int(processes or available_cpus())
         self._scene = _closest_point_scene(mesh)
         # face by corner, not (nf, 3, 3) temporaries: the mesh loads while the program
@@ -291,33 +298,57 @@ class MeshIndex:
                                self.processes if pool else 1) or [fn(*arrays)]
         return tuple(np.concatenate(col) for col in zip(*parts))
 
-    def _query(self, P: np.ndarray) -> tuple:
-        """Closest mesh points of ``P (m, 3)``: (dist_mm, face, point_mm).
+    def _faces(self, P: np.ndarray) -> np.ndarray:
+        """The face holding the closest mesh point of each row of ``P (m, 3)``; -1 where
+        a query point is not finite.
 
-        fcpw's vectorised BVH (float32, all cores) finds the face; the point on it
-        and the distance are then computed in float64 from the mesh itself, so they
-        are as exact as the mesh (float32 only decides between faces whose
-        distances differ by less than ~1e-5 relative).
+        fcpw's vectorised BVH (float32) answers ``query_points`` points per call.  It
+        splits each call's points into one contiguous run per core, so a call's time
+        is that of its slowest run: few large calls keep the cores evenly loaded
+        (1M spatially ordered points, 2 cores: 3.4-3.5 s in one call, 3.8-4.0 s in
+        calls of 65,536), and each point costs ~60 bytes of results while its call runs.
         """
-        if P.shape[0] == 0:
-            return np.zeros(0), np.zeros(0, np.int64), np.zeros((0, 3))
         import fcpw
-        P = np.ascontiguousarray(P, dtype=np.float64)
-        found = fcpw.interaction_3D_list()
-        self._scene.find_closest_points(np.asfortranarray(P, dtype=np.float32),
-                                        np.full(P.shape[0], np.inf, np.float32), found)
-        face = np.fromiter((hit.primitive_index for hit in found), np.int64, P.shape[0])
+        face = np.empty(P.shape[0], dtype=np.int64)
+        for lo in range(0, P.shape[0], self.query_points):
+            part = P[lo:lo + self.query_points]
+            found = fcpw.interaction_3D_list()
+            self._scene.find_closest_points(np.asfortranarray(part, dtype=np.float32),
+                                            np.full(part.shape[0], np.inf, np.float32), found)
+            face[lo:lo + part.shape[0]] = np.fromiter(map(_PRIMITIVE, found), np.int64,
+                                                      part.shape[0])
+            del found
+        return face
+
+    def _on_faces(self, P: np.ndarray, face: np.ndarray) -> tuple:
+        """(dist_mm, face, point_mm) of ``P (m, 3)`` on the faces :meth:`_faces` found.
+
+        The point on the face and the distance are computed in float64 from the mesh
+        itself, so they are as exact as the mesh (float32 only decides between faces
+        whose distances differ by less than ~1e-5 relative).
+        """
         lost = face < 0  # a non-finite query point: no face, no point
-        face[lost] = 0
+        face = np.where(lost, 0, face)
         point = _closest_on_triangles(P, self.mesh.V[self.mesh.F[face]])
         point[lost] = np.nan
         return _norms(P - point), face, point
 
+    def _query(self, P: np.ndarray) -> tuple:
+        """Closest mesh points of ``P (m, 3)``: (dist_mm, face, point_mm), in one go."""
+        if P.shape[0] == 0:
+            return np.zeros(0), np.zeros(0, np.int64), np.zeros((0, 3))
+        P = np.ascontiguousarray(P, dtype=np.float64)
+        return self._on_faces(P, self._faces(P))
+
     def closest(self, points_mm: np.ndarray) -> Closest:
-        """Closest mesh point of each query point ``(m, 3)``, in chunks, in order
-        (queried in :func:`ncopt.mesh.spatial_order`: the same answers, faster)."""
-        order = spatial_order(np.asarray(points_mm, dtype=np.float64))
-        found = self.map_chunks(self._query, np.asarray(points_mm)[order], pool=False)
+        """Closest mesh point of each query point ``(m, 3)``, in order (queried in
+        :func:`ncopt.mesh.spatial_order`: the same answers, faster); the faces in
+        large calls, the points on them chunk by chunk in the pool."""
+        P = np.asarray(points_mm, dtype=np.float64)
+        order = spatial_order(P)
+        P = P[order]
+        found = self.map_chunks(self._on_faces, P, self._faces(P))
+        del P
         back = np.empty_like(order)
         back[order] = np.arange(order.size)
         return Closest(*(a[back] for a in found))

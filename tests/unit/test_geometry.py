@@ -235,6 +235,18 @@ def test_chunks_keep_query_order(sphere_index):
         np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.parametrize("query_points", [1, 7, 100, 101])
+def test_closest_point_calls_of_any_size_give_the_same_answers(sphere_index, query_points):
+    points = 30.0 * directions(101, seed=5)
+    points[13] = np.nan  # a lost point inside a call keeps its neighbours' answers
+    whole = sphere_index.closest(points)
+    called = MeshIndex(sphere_index.mesh, query_points=query_points,
+                       chunk_points=10).closest(points)
+    for a, b in zip(whole, called):
+        np.testing.assert_array_equal(a, b)
+    assert np.isnan(called.dist_mm[13]) and np.isfinite(np.delete(called.dist_mm, 13)).all()
+
+
 def test_pool_gives_exactly_the_serial_answers(sphere_index):
     centres = 24.0 * directions(1000, seed=4)
     pooled_index = MeshIndex(sphere_index.mesh, pool_min_points=10, chunk_points=64,
