@@ -335,7 +335,7 @@ def _fast_path(raw, line_start, content_end, classes):
     arrays (line, letter, value, start, end, num_start) for the fast lines.
     """
     n_lines = line_start.shape[0] - 1
-    cls = classes[raw]
+    cls = np.take(classes, raw)  # take: 2.5x faster than classes[raw] for uint8 raw
     line_of = np.repeat(np.arange(n_lines, dtype=np.int32), np.diff(line_start))
     # the bytes after each line's content (its line end, a block end mark: a few at
     # most) read as line ends
