@@ -12,8 +12,6 @@ from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
-from stl import Mode
-from stl import mesh as stl_mesh
 
 from ncopt.errors import MeshError
 from ncopt.interp import row_norms
@@ -133,8 +131,10 @@ def _same_bits(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return order, run, np.minimum.reduceat(order, np.flatnonzero(new))
 
 
-def _stl_mode(path: Path) -> Mode:
-    """Binary or ASCII, checked against the file size (numpy-stl is lenient)."""
+def _stl_mode(path: Path):
+    """Binary or ASCII (numpy-stl's ``Mode``), checked against the file size (numpy-stl
+    is lenient)."""
+    from stl import Mode
     size = path.stat().st_size
     with path.open("rb") as fh:
         head = fh.read(84)
@@ -173,6 +173,7 @@ def load_stl(path: str | os.PathLike, merge_tol_mm: float = 1e-6) -> Mesh:
     if not p.is_file():
         raise MeshError("no such file; check the mesh path", path=str(p))
     mode = _stl_mode(p)
+    from stl import mesh as stl_mesh  # numpy-stl: imported when a mesh is read (~30 ms)
     try:
         parts = list(stl_mesh.Mesh.from_multi_file(str(p), calculate_normals=False, mode=mode))
     except _STL_READ_ERRORS as exc:

@@ -27,11 +27,12 @@ def test_importing_the_api_does_not_import_scipy_spatial():
 
 
 def test_importing_the_api_loads_no_mesh_library():
-    # libigl brings scipy.sparse: ~0.11 s of the import, needed only with a mesh
+    # libigl brings scipy.sparse (~0.11 s of the import), numpy-stl ~0.03 s: only a mesh
+    # needs them
     done = _run("""
         import sys
         import ncopt.api, ncopt.cli, ncopt.geometry
-        print(sorted(m for m in ('igl', 'fcpw', 'scipy.sparse') if m in sys.modules))
+        print(sorted(m for m in ('igl', 'fcpw', 'scipy.sparse', 'stl') if m in sys.modules))
     """)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "[]"
