@@ -246,8 +246,9 @@ class MeshIndex:
         # face by corner, not (nf, 3, 3) temporaries: the mesh loads while the program
         # is parsed, so its peak adds to theirs (1M triangles: ~200 MB lower)
         V, F = mesh.V, mesh.F
-        a = V[F[:, 0]]
-        self.face_normal = _unit(np.cross(V[F[:, 1]] - a, V[F[:, 2]] - a))
+        a = np.take(V, F[:, 0], axis=0)  # np.take: 3-4x faster than V[F[:, 0]]
+        self.face_normal = _unit(np.cross(np.take(V, F[:, 1], axis=0) - a,
+                                          np.take(V, F[:, 2], axis=0) - a))
         del a
         tt, _ = igl.triangle_triangle_adjacency(F)
         cos_limit = np.cos(np.radians(self.feature_angle_deg))
@@ -266,7 +267,8 @@ class MeshIndex:
     def _corner_normals(self) -> np.ndarray:
         import igl
         V, F = self.mesh.V, self.mesh.F
-        cn = igl.per_vertex_normals(V, F, igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_ANGLE)[F]
+        cn = np.take(igl.per_vertex_normals(V, F, igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_ANGLE),
+                     F, axis=0)
         sharp = np.zeros(V.shape[0], dtype=bool)
         sharp[F[self.feature_edge]] = True
         sharp[np.roll(F, -1, axis=1)[self.feature_edge]] = True
@@ -329,7 +331,7 @@ class MeshIndex:
         """
         lost = face < 0  # a non-finite query point: no face, no point
         face = np.where(lost, 0, face)
-        point = _closest_on_triangles(P, self.mesh.V[self.mesh.F[face]])
+        point = _closest_on_triangles(P, self.mesh.corners(face))
         point[lost] = np.nan
         return _norms(P - point), face, point
 
@@ -346,12 +348,12 @@ class MeshIndex:
         large calls, the points on them chunk by chunk in the pool."""
         P = np.asarray(points_mm, dtype=np.float64)
         order = spatial_order(P)
-        P = P[order]
+        P = np.take(P, order, axis=0)
         found = self.map_chunks(self._on_faces, P, self._faces(P))
         del P
         back = np.empty_like(order)
         back[order] = np.arange(order.size)
-        return Closest(*(a[back] for a in found))
+        return Closest(*(np.take(a, back, axis=0) for a in found))
 
 
 # ---------------------------------------------------------------- normals
@@ -375,7 +377,7 @@ class _Frame(NamedTuple):
 
 
 def _frame(index: MeshIndex, face: np.ndarray, x: np.ndarray) -> _Frame:
-    P, N = index.mesh.V[index.mesh.F[face]], index.corner_normal[face]
+    P, N = index.mesh.corners(face), np.take(index.corner_normal, face, axis=0)
     p0, e1, e2 = P[:, 0], P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
     d = x - p0
     d00, d01, d11, d20, d21 = _dot(e1, e1), _dot(e1, e2), _dot(e2, e2), _dot(d, e1), _dot(d, e2)
@@ -412,7 +414,7 @@ def _on_feature_edge(index: MeshIndex, face: np.ndarray, fr: _Frame) -> np.ndarr
     """The CC point lies on a sharp or boundary edge of its face (or at its ends)."""
     # edge k joins corners k and k+1: it is where the coordinate of corner k+2 vanishes
     opposite = np.stack([fr.v, 1.0 - fr.u - fr.v, fr.u], axis=1)
-    return np.any((opposite <= 1e-6) & index.feature_edge[face], axis=1)
+    return np.any((opposite <= 1e-6) & np.take(index.feature_edge, face, axis=0), axis=1)
 
 
 def _clamp_cone(axis: np.ndarray, n: np.ndarray, max_rad: np.ndarray) -> np.ndarray:
@@ -455,7 +457,7 @@ def _contact_normal(index: MeshIndex, cl: Closest, centre: np.ndarray,
                     method: str, axis: np.ndarray | None = None) -> np.ndarray:
     """Unit normal at each CC point, oriented toward the tool."""
     n_center = _unit(centre - cl.point_mm)
-    facet = index.face_normal[cl.face]
+    facet = np.take(index.face_normal, cl.face, axis=0)
     lost = ~np.any(n_center, axis=1)  # centre on the mesh: take the facet's, toward the tool
     up = np.array([[0.0, 0.0, 1.0]]) if axis is None else axis[lost]
     n_center[lost] = _orient(facet[lost], up)
