@@ -395,22 +395,22 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
     # so are min() and max(): ``b if b > a else a`` is max(a, b) exactly (the first of
     # equals, NaN alike, the same type), ``b if b < a else a`` min(a, b), at a third of
     # the cost of the builtin call.
-    for b, target, fixed_b in zip(range(n), s_plan, fixed):
+    for b, target, fixed_b, start_b, cut_b, inc2_b, inc_b in zip(range(n), s_plan, fixed, starts,
+                                                                cutting, inc_s2, inc_s):
         before = cur
         if fixed_b:
             cur = float(fixed_rpm[b])
             if not cur > 0:  # the program runs this block with no S in force
                 real = None
-        elif cur is None or starts[b] or not cur > 0:  # a (re)start: the control brings it up
+        elif cur is None or start_b or not cur > 0:  # a (re)start: the control brings it up
             cur = real = float(min(max(floor(target), lo_int), top))
         elif real == cur and cur <= target < cur + step:  # holding steady: nothing to do
             cmd_out[b] = low_out[b] = high_out[b] = cur
             if timed:
                 since_s += (60.0 * length[b] / (feed_per_rev_mm * max(cur, 1.0))
-                            if cutting[b] and feed_per_rev_mm > 0 else time_free[b])
+                            if cut_b and feed_per_rev_mm > 0 else time_free[b])
             continue
         else:
-            cut_b = cutting[b]
             r = ratio if cut_b else inf
             if target >= cur + step:  # rise; the fz band bounds it by the real speed
                 up = real * r
@@ -428,9 +428,9 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
                 # the spindle limit may leave the real speed up to 1 RPM above an integer
                 # command (the ramp tracking keeps the real value); the fz band may not
                 # be crossed at all
-                sq = real * real - inc_s2[b]
+                sq = real * real - inc2_b
                 reach = sqrt(0.0 if 0.0 > sq else sq)
-                lin = real - inc_s[b]
+                lin = real - inc_b
                 if lin > reach:
                     reach = lin
                 band_floor = math.ceil(real / r) if cut_b and band else 0
@@ -476,19 +476,19 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
             real = cur
         elif cur > start:  # toward the command: S^2 moves by at most inc_s2 (cutting), S by inc_s
             real = cur
-            sq = sqrt(start * start + inc_s2[b])
+            sq = sqrt(start * start + inc2_b)
             if sq < real:
                 real = sq
-            lin = start + inc_s[b]
+            lin = start + inc_b
             if lin < real:
                 real = lin
         else:
             real = cur
-            sq = start * start - inc_s2[b]
+            sq = start * start - inc2_b
             sq = sqrt(0.0 if 0.0 > sq else sq)
             if sq > real:
                 real = sq
-            lin = start - inc_s[b]
+            lin = start - inc_b
             if lin > real:
                 real = lin
         if start < real:
@@ -500,7 +500,7 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
                 since_s = 0.0
             lowest = start if start < real else real
             since_s += (60.0 * length[b] / (feed_per_rev_mm * max(lowest, 1.0))
-                        if cutting[b] and feed_per_rev_mm > 0 else time_free[b])
+                        if cut_b and feed_per_rev_mm > 0 else time_free[b])
     return Emitted(*out, close)
 
 
