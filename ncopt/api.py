@@ -168,10 +168,10 @@ class Result:
 def rewrite_file(path: str | Path, job: Job, mesh_path: str | Path | None = None,
                  data: bytes | None = None) -> Result:
     """Read a program (or use ``data`` as its bytes) and rewrite it."""
-    if data is None:
-        data = Path(path).read_bytes()
+    text = (Path(path).read_bytes() if data is None else data).decode("latin-1")
+    del data  # the file's bytes are not kept through the rewrite (the text is)
     if mesh_path is None:
-        return rewrite_text(data.decode("latin-1"), job, str(path))
+        return rewrite_text(text, job, str(path))
     # The mesh loads in a thread while the program is parsed and interpreted (STL
     # reading and libigl's normals run largely outside the GIL, fcpw's BVH build
     # does not: 1M blocks and 1M triangles, 5.0 s one after the other, 4.2 s together).  No reference to the
@@ -179,8 +179,7 @@ def rewrite_file(path: str | Path, job: Job, mesh_path: str | Path | None = None
     # soon as the contacts are found.
     pool = ThreadPoolExecutor(1, thread_name_prefix="ncopt-mesh")
     try:
-        return rewrite_text(data.decode("latin-1"), job, str(path),
-                            pool.submit(_mesh_index, mesh_path))
+        return rewrite_text(text, job, str(path), pool.submit(_mesh_index, mesh_path))
     finally:  # an error in the program is reported without waiting for the mesh
         pool.shutdown(wait=False, cancel_futures=True)
 
