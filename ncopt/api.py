@@ -174,9 +174,9 @@ def rewrite_file(path: str | Path, job: Job, mesh_path: str | Path | None = None
         return rewrite_text(text, job, str(path))
     # The mesh loads in a thread while the program is parsed and interpreted (STL
     # reading and libigl's normals run largely outside the GIL, fcpw's BVH build
-    # does not: 1M blocks and 1M triangles, 5.0 s one after the other, 4.2 s together).  No reference to the
-    # future is kept here: rewrite_text drops the index (~700 MB at 1M triangles) as
-    # soon as the contacts are found.
+    # does not: 1M blocks and 1M triangles, 5.0 s one after the other, 4.2 s together).
+    # No reference to the future is kept here: rewrite_text drops the index (~700 MB at
+    # 1M triangles) as soon as the contacts are found.
     pool = ThreadPoolExecutor(1, thread_name_prefix="ncopt-mesh")
     try:
         return rewrite_text(text, job, str(path), pool.submit(_mesh_index, mesh_path))
@@ -239,7 +239,8 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
         mode_given = job.options.s_changes is not None
         control = job.control or found.name
         mode = job.options.s_changes or default_s_changes(control)
-        job = replace(job, options=replace(job.options, f_quantum_mm_min=quantum, s_changes=mode))
+        job = replace(job, options=replace(job.options, f_quantum_mm_min=quantum,
+                                           s_changes=mode))
         work = plan_program(prog, tp, idx, job, mesh_index)
         mesh_edge = float(mesh_index.edge_lengths.median_mm) if mesh_index else None
         del mesh_index  # the largest object of a big job; verification needs memory too
@@ -522,7 +523,8 @@ def _lag_warnings(prog, tp, idx, work: Work, targets: Targets, job: Job) -> tupl
     counts = np.diff(np.concatenate((idx.first_point, [n])))
     start = int(idx.first_point[0]) if idx.first_point.size else n
     s_pt = tp.spindle_rpm.copy()
-    s_block = np.where(np.isfinite(targets.s_value), targets.s_value, tp.spindle_rpm[idx.first_point])
+    s_block = np.where(np.isfinite(targets.s_value), targets.s_value,
+                       tp.spindle_rpm[idx.first_point])
     s_pt[start:] = np.repeat(s_block, counts)
     rev_block = np.full(idx.first_point.shape[0], np.nan)
     for p in work.plans:
