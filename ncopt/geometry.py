@@ -305,10 +305,10 @@ class MeshIndex:
         a query point is not finite.
 
         fcpw's vectorised BVH (float32) answers ``query_points`` points per call.  It
-        splits each call's points into one contiguous run per core, so a call's time
-        is that of its slowest run: few large calls keep the cores evenly loaded
-        (1M spatially ordered points, 2 cores: 3.4-3.5 s in one call, 3.8-4.0 s in
-        calls of 65,536), and each point costs ~60 bytes of results while its call runs.
+        behaves as if it gave each core one contiguous run of a call's points: a call
+        lasts as long as its slowest run, and few large calls keep the cores evenly
+        loaded (1M spatially ordered points, 2 cores: 3.4-3.5 s in one call, 3.8-4.0 s
+        in calls of 65,536).  Each point costs ~60 bytes of results while its call runs.
         """
         import fcpw
         face = np.empty(P.shape[0], dtype=np.int64)
