@@ -316,6 +316,9 @@ def _insertions(prog, appended: dict, style) -> Edits:
     return Edits(at, at.copy(), texts, len(s_lines), len(f_lines))
 
 
+SPLICE_BLOCK = 65536  # edits joined at a time by apply_edits
+
+
 def apply_edits(text: str, edits) -> str:
     """Splice edits (:class:`Edits` or a sequence of :class:`Edit`) into text.
 
@@ -330,14 +333,22 @@ def apply_edits(text: str, edits) -> str:
     clash = np.flatnonzero(start[1:] < end[:-1])
     if clash.size:
         raise VerificationError(f"overlapping edits at offset {int(start[clash[0] + 1])}")
-    keep_from = np.concatenate(([0], end)).tolist()
-    keep_to = np.concatenate((start, [len(text)])).tolist()
-    # kept text, edit, kept text, ..., edit, kept text: filled by slices, not appends
-    parts = [""] * (2 * len(order) + 1)
-    parts[0::2] = [text[a:b] for a, b in zip(keep_from, keep_to)]
-    parts[1::2] = list(map(edits.text.__getitem__, order.tolist()))
-    out = "".join(parts)
-    del parts, keep_from, keep_to
+    # kept text, edit, kept text, ..., edit, kept text: filled by slices, not appends, and
+    # joined a block of edits at a time, so that the Python ints and strings of only one
+    # block are alive at once (~1M edits: ~150 MB less at the splice, a rewrite's peak)
+    n = len(order)
+    pieces = []
+    for lo in range(0, n, SPLICE_BLOCK):
+        hi = min(lo + SPLICE_BLOCK, n)
+        parts = [""] * (2 * (hi - lo))
+        keep_from = ([0] if lo == 0 else []) + end[max(lo - 1, 0):hi - 1].tolist()
+        parts[0::2] = [text[a:b] for a, b in zip(keep_from, start[lo:hi].tolist())]
+        parts[1::2] = list(map(edits.text.__getitem__, order[lo:hi].tolist()))
+        pieces.append("".join(parts))
+    pieces.append(text[int(end[-1]):])
+    del parts
+    out = "".join(pieces)
+    del pieces
     release_freed_memory(force=True)  # the leftovers of the planning and the edits: the
     # verification, the peak of a rewrite, reuses the address space, not its pages
     return out

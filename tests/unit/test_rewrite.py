@@ -13,6 +13,7 @@ from ncopt.api import Job, rewrite_text
 from ncopt.errors import VerificationError
 from ncopt.interp import interpret
 from ncopt.model import Cutter, CuttingData, Edit, LineKind, Machine
+from ncopt import rewrite
 from ncopt.parse import parse_text
 from ncopt.rewrite import (F_CODE, S_CODE, Targets, WordStyle, apply_edits, detect_style,
                            masked, plan_edits)
@@ -130,6 +131,35 @@ def test_apply_edits_identity_and_order():
     assert apply_edits(text, []) == text
     ins = [Edit(10, 10, " S1"), Edit(10, 10, " F2"), Edit(7, 10, "200")]
     assert apply_edits(text, ins) == "G1 X1 F200 S1 F2\n"
+
+
+def _spliced_reference(text: str, edits) -> str:
+    """apply_edits as a plain loop over the edits in (start, end) order."""
+    out, pos = [], 0
+    for e in sorted(edits, key=lambda e: (e.start, e.end)):  # stable: insertions keep order
+        out += [text[pos:e.start], e.text]
+        pos = e.end
+    return "".join(out) + text[pos:]
+
+
+@given(st.text(alphabet="GX1 \n", min_size=0, max_size=30).flatmap(lambda text: st.tuples(
+    st.just(text), st.lists(st.tuples(st.integers(0, len(text)), st.integers(0, 2),
+                                      st.sampled_from(["", "S1", " F20"])), max_size=12))),
+       st.sampled_from([1, 2, 3, 65536]))
+def test_apply_edits_is_the_plain_splice_whatever_its_block(case, block):
+    text, raw = case
+    edits, last = [], -1
+    for at, length, new in sorted(raw):  # apart: each starts at or after the previous end
+        at = max(at, last)
+        end = min(at + length, len(text))
+        edits.append(Edit(at, end, new))
+        last = end
+    old = rewrite.SPLICE_BLOCK
+    rewrite.SPLICE_BLOCK = block
+    try:
+        assert apply_edits(text, edits) == _spliced_reference(text, edits)
+    finally:
+        rewrite.SPLICE_BLOCK = old
 
 
 def test_overlapping_edits_raise():
