@@ -200,27 +200,29 @@ def _after_fixed(s, blocks, inc_s2, inc_s, ratio_inc, max_rpm):
     if not fixed.any():
         return s
     env = np.where(fixed, blocks.fixed_rpm, 0.0)
+    # the chains depend on the increments alone: found once, used by every iteration
+    ch_s2, ch_s, ch_ratio = _chains(inc_s2), _chains(inc_s), _chains(ratio_inc)
     for _ in range(MAX_ITERATIONS):
         before = env
-        env = np.sqrt(np.maximum(_two_way_max_forward(env * env, inc_s2), 0.0))
-        env = np.maximum(env, _two_way_max_forward(env, inc_s))
+        env = np.sqrt(np.maximum(_two_way_max_forward(env * env, ch_s2), 0.0))
+        env = np.maximum(env, _two_way_max_forward(env, ch_s))
         env = np.maximum(env, np.exp(_two_way_max_forward(np.log(np.maximum(env, 1e-300)),
-                                                          ratio_inc)))
+                                                          ch_ratio)))
         if np.allclose(env, before, rtol=1e-12, atol=CONVERGED_RPM):
             break
     return np.where(blocks.planned, np.minimum(np.maximum(s, env), max_rpm), env)
 
 
-def _two_way_max_forward(x: np.ndarray, inc: np.ndarray) -> np.ndarray:
+def _two_way_max_forward(x: np.ndarray, chains) -> np.ndarray:
     """The smallest y >= x with y_b >= y_(b-1) - inc_b (a fall at most inc per block);
-    an infinite inc restarts the chain."""
-    return -_two_way_min_forward(-x, inc)
+    an infinite inc restarts the chain.  ``chains``: :func:`_chains` of inc."""
+    return -_two_way_min_forward(-x, chains)
 
 
-def _two_way_min_forward(x: np.ndarray, inc: np.ndarray) -> np.ndarray:
-    """The largest y <= x with y_b <= y_(b-1) + inc_b (the forward pass alone)."""
+def _two_way_min_forward(x: np.ndarray, chains) -> np.ndarray:
+    """The largest y <= x with y_b <= y_(b-1) + inc_b (the forward pass alone);
+    ``chains``: :func:`_chains` of inc."""
     out = x.copy()
-    chains = _chains(inc)
     if chains is None:
         return out
     idx, seg, cum = chains
