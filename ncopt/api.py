@@ -24,7 +24,7 @@ from .errors import VerificationError
 from .feedmode import inverse_time_words
 from .geometry import MeshIndex, load_stl
 from .interp import ffill, interpret
-from .memory import release_freed_memory, working_memory
+from .memory import release_freed_memory, small_pages, working_memory
 from .model import Cutter, CuttingData, Machine, Motion, PlanOptions, Program, Toolpath
 from .parse import parse_text
 from .pathnormals import NO_CROSS, ONE_SIDED
@@ -179,7 +179,8 @@ def rewrite_file(path: str | Path, job: Job, mesh_path: str | Path | None = None
     # 1M triangles) as soon as the contacts are found.
     pool = ThreadPoolExecutor(1, thread_name_prefix="ncopt-mesh")
     try:
-        return rewrite_text(text, job, str(path), pool.submit(_mesh_index, mesh_path))
+        with small_pages():  # from the mesh's first array on (ncopt.memory)
+            return rewrite_text(text, job, str(path), pool.submit(_mesh_index, mesh_path))
     finally:  # an error in the program is reported without waiting for the mesh
         pool.shutdown(wait=False, cancel_futures=True)
 
@@ -218,63 +219,65 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     (loading while the program is read); None: normals from the toolpath.
     Raises NothingToPlan (exit 5) when no operation of the program can be planned.
     """
-    # Up to the verification, freed memory stays for the next stage (ncopt.memory); the
-    # verification, the peak of a rewrite, hands its temporaries back between its steps.
-    # The stages are inside the block, not in a call: a caller's frame would keep the
-    # mesh's future, and so the mesh, alive.
-    with working_memory():
-        kdtree.prefetch()  # scipy.spatial loads while the program is parsed
-        found = detect(text)
-        prog = read_text(text, path, job, found.name)
-        tp = interpret(prog, kinematics=job.kinematics)
-        mesh_index = _loaded(mesh_index)
-        idx = planner.block_index(tp.line)
-        s_style = detect_style(prog, S_CODE)
-        f_style = detect_style(prog, F_CODE, default_decimals=1)
-        inch = tp.line_inch is not None and bool(tp.line_inch.any())
-        if inch and f_style.decimals < 2:
-            f_style = replace(f_style, decimals=2, trailing_point=False)  # inch/min needs them
-        quantum = 10.0 ** -f_style.decimals * (MM_PER_INCH if inch else 1.0)
-        quantum = max(quantum, _inverse_time_quantum(tp, idx, f_style))
-        mode_given = job.options.s_changes is not None
-        control = job.control or found.name
-        mode = job.options.s_changes or default_s_changes(control)
-        job = replace(job, options=replace(job.options, f_quantum_mm_min=quantum,
-                                           s_changes=mode))
-        work = plan_program(prog, tp, idx, job, mesh_index)
-        mesh_edge = float(mesh_index.edge_lengths.median_mm) if mesh_index else None
-        del mesh_index  # the largest object of a big job; verification needs memory too
-        if mesh_edge is not None:  # it was built in its own thread's arena: hand that back
-            release_freed_memory(force=True)
-        targets = _targets(prog, tp, idx, work, f_style)
-        consumers = _with_fixed_lines(tp, idx, work.scope, targets)
-        with ThreadPoolExecutor(1, thread_name_prefix="ncopt-checks") as pool:
-            # numpy work that needs no edit, beside the edits and the splice (Python loops):
-            # the lag check, and the input's side of the verification's comparison
-            lag = pool.submit(_lag_warnings, prog, tp, idx, work, targets, job)
-            masked_input = pool.submit(_masked_input, prog) if job.verify else None
-            edits = plan_edits(prog, consumers, s_style, f_style, work.scope.editable)
-            stamp = (stamp_edit(prog, work.plans, 100.0 * job.options.fz_tolerance)
-                     if job.stamp else None)
-            out = apply_edits(text, edits + ([stamp] if stamp else ()))
-            counts = (len(edits), edits.s_words, edits.f_words)
-            del edits  # ~800k strings at 1M blocks: not kept through the verification's peak
-            lag_warnings = lag.result()
-            masked_input = masked_input.result() if masked_input is not None else None
-    if job.verify:
-        verify(prog, tp, out, consumers, s_style, f_style, job, found.name, work.scope,
-               masked_input)
-    del masked_input
-    summary = _summary(prog, tp, idx, work, targets, counts, mesh_edge, job)
-    summary = replace(summary, warnings=summary.warnings + lag_warnings)
-    source = job.control_from if job.control else (
-        f"detected from {len(found.marks)} mark{'s' if len(found.marks) > 1 else ''}"
-        if found.marks else "no marks: generic")
-    summary = replace(summary, control=control, control_source=source,
-                      control_notes=(control_note(control, summary.s_words, mode),),
-                      s_changes=mode,
-                      s_changes_source="given" if mode_given else f"the default for {control}")
-    return Result(out, summary, prog, tp, idx, tuple(work.plans), targets, work.ops, work.scope)
+    # numpy's arrays on small pages throughout (ncopt.memory.small_pages).
+    with small_pages():
+        # Up to the verification, freed memory stays for the next stage (ncopt.memory); the
+        # verification, the peak of a rewrite, hands its temporaries back between its steps.
+        # The stages are inside the block, not in a call: a caller's frame would keep the
+        # mesh's future, and so the mesh, alive.
+        with working_memory():
+            kdtree.prefetch()  # scipy.spatial loads while the program is parsed
+            found = detect(text)
+            prog = read_text(text, path, job, found.name)
+            tp = interpret(prog, kinematics=job.kinematics)
+            mesh_index = _loaded(mesh_index)
+            idx = planner.block_index(tp.line)
+            s_style = detect_style(prog, S_CODE)
+            f_style = detect_style(prog, F_CODE, default_decimals=1)
+            inch = tp.line_inch is not None and bool(tp.line_inch.any())
+            if inch and f_style.decimals < 2:
+                f_style = replace(f_style, decimals=2, trailing_point=False)  # inch/min needs them
+            quantum = 10.0 ** -f_style.decimals * (MM_PER_INCH if inch else 1.0)
+            quantum = max(quantum, _inverse_time_quantum(tp, idx, f_style))
+            mode_given = job.options.s_changes is not None
+            control = job.control or found.name
+            mode = job.options.s_changes or default_s_changes(control)
+            job = replace(job, options=replace(job.options, f_quantum_mm_min=quantum,
+                                               s_changes=mode))
+            work = plan_program(prog, tp, idx, job, mesh_index)
+            mesh_edge = float(mesh_index.edge_lengths.median_mm) if mesh_index else None
+            del mesh_index  # the largest object of a big job; verification needs memory too
+            if mesh_edge is not None:  # it was built in its own thread's arena: hand that back
+                release_freed_memory(force=True)
+            targets = _targets(prog, tp, idx, work, f_style)
+            consumers = _with_fixed_lines(tp, idx, work.scope, targets)
+            with ThreadPoolExecutor(1, thread_name_prefix="ncopt-checks") as pool:
+                # numpy work that needs no edit, beside the edits and the splice (Python loops):
+                # the lag check, and the input's side of the verification's comparison
+                lag = pool.submit(_lag_warnings, prog, tp, idx, work, targets, job)
+                masked_input = pool.submit(_masked_input, prog) if job.verify else None
+                edits = plan_edits(prog, consumers, s_style, f_style, work.scope.editable)
+                stamp = (stamp_edit(prog, work.plans, 100.0 * job.options.fz_tolerance)
+                         if job.stamp else None)
+                out = apply_edits(text, edits + ([stamp] if stamp else ()))
+                counts = (len(edits), edits.s_words, edits.f_words)
+                del edits  # ~800k strings at 1M blocks: not kept through the verification's peak
+                lag_warnings = lag.result()
+                masked_input = masked_input.result() if masked_input is not None else None
+        if job.verify:
+            verify(prog, tp, out, consumers, s_style, f_style, job, found.name, work.scope,
+                   masked_input)
+        del masked_input
+        summary = _summary(prog, tp, idx, work, targets, counts, mesh_edge, job)
+        summary = replace(summary, warnings=summary.warnings + lag_warnings)
+        source = job.control_from if job.control else (
+            f"detected from {len(found.marks)} mark{'s' if len(found.marks) > 1 else ''}"
+            if found.marks else "no marks: generic")
+        summary = replace(summary, control=control, control_source=source,
+                          control_notes=(control_note(control, summary.s_words, mode),),
+                          s_changes=mode,
+                          s_changes_source="given" if mode_given else f"the default for {control}")
+        return Result(out, summary, prog, tp, idx, tuple(work.plans), targets, work.ops, work.scope)
 
 
 def _targets(prog: Program, tp: Toolpath, idx: planner.BlockIndex, work: "Work",

@@ -147,3 +147,66 @@ def test_the_mesh_is_freed_once_the_contacts_are_found(monkeypatch, bowl_stl):
     with ThreadPoolExecutor(1) as pool:  # as rewrite_file passes it: no other reference
         api.rewrite_text(text, job, "bowl.mpf", pool.submit(load))
     assert alive == [False]
+
+
+def _huge_pages() -> bool:
+    """numpy's current madvise-hugepage setting (read by setting it back at once)."""
+    switch = memory._hugepage_switch()
+    before = switch(True)
+    switch(before)
+    return bool(before)
+
+
+_LINUX = pytest.mark.skipif(not sys.platform.startswith("linux"),
+                            reason="numpy marks huge pages on Linux only")
+
+
+@_LINUX
+@pytest.mark.parametrize("before", [True, False])
+def test_small_pages_turns_numpy_huge_pages_off_and_back(before):
+    switch = memory._hugepage_switch()
+    assert switch is not None  # numpy >= 1.19 has it
+    original = switch(before)
+    try:
+        with memory.small_pages():
+            assert not _huge_pages()
+            with memory.small_pages():
+                assert not _huge_pages()
+            assert not _huge_pages()  # the outer block still runs
+        assert _huge_pages() is before
+        with pytest.raises(ZeroDivisionError):
+            with memory.small_pages():
+                1 / 0
+        assert _huge_pages() is before
+    finally:
+        switch(original)
+
+
+@_LINUX
+def test_a_rewrite_runs_on_small_pages_and_gives_numpy_its_setting_back(monkeypatch, bowl_stl,
+                                                                        tmp_path):
+    # on the 2-core machine huge-page faults cost ~1 s of system time per rewrite
+    from ncopt import api
+    from ncopt.model import Cutter, Machine
+
+    seen = []
+    for name in ("read_text", "interpret", "verify", "_mesh_index"):
+        real = getattr(api, name)
+
+        def spy(*a, _real=real, _name=name, **k):
+            seen.append((_name, _huge_pages()))
+            return _real(*a, **k)
+        monkeypatch.setattr(api, name, spy)
+    text = Path(__file__).resolve().parents[2].joinpath("samples", "bowl.mpf").read_bytes()
+    path = tmp_path / "bowl.mpf"
+    path.write_bytes(text[:120_000].rsplit(b"\n", 1)[0] + b"\nM30\n")
+    job = api.Job(cutter=Cutter(16.0, 2), machine=Machine(accel_rad_s2=227.0, max_rpm=15000.0))
+    switch = memory._hugepage_switch()
+    original = switch(True)  # numpy's default on Linux 4.6 and later
+    try:
+        api.rewrite_file(path, job, mesh_path=bowl_stl)
+        assert _huge_pages()
+    finally:
+        switch(original)
+    assert sorted(set(seen)) == [("_mesh_index", False), ("interpret", False),
+                                 ("read_text", False), ("verify", False)]
