@@ -293,7 +293,8 @@ def _mesh_probe(mesh_index: MeshIndex, cutter: Cutter, tol_mm: float, stock_mm: 
 
 def _with_material(tp: Toolpath, cutter: Cutter, sampled: Sampled, method: Method) -> Contacts:
     """R_eff from the remaining material, with each sample's direction of motion."""
-    d = tp.xyz_mm[sampled.point] - tp.xyz_mm[np.maximum(sampled.point - 1, 0)]
+    d = (np.take(tp.xyz_mm, sampled.point, axis=0)
+         - np.take(tp.xyz_mm, np.maximum(sampled.point - 1, 0), axis=0))
     r = r_eff_material_mm(cutter, sampled.contacts.normal, d, method.ap_mm, method.along,
                           sampled.axis)
     return replace(sampled.contacts, r_eff_mm=r)

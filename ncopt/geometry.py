@@ -254,7 +254,8 @@ class MeshIndex:
         cos_limit = np.cos(np.radians(self.feature_angle_deg))
         self.feature_edge = tt < 0
         for k in range(3):
-            cos_angle = _dot(self.face_normal, self.face_normal[np.maximum(tt[:, k], 0)])
+            cos_angle = _dot(self.face_normal,
+                             np.take(self.face_normal, np.maximum(tt[:, k], 0), axis=0))
             self.feature_edge[:, k] |= cos_angle < cos_limit
         del tt
         cn = (self._corner_normals() if corner_normals is None else  # ours, or a copy

@@ -83,7 +83,7 @@ def mesh_from_triangles(tri_mm: np.ndarray, merge_tol_mm: float = 1e-6) -> Mesh:
     first = first[by_file]       # then keeps the first corner of each grid point first
     key = np.empty((first.size, 3), dtype=np.int64)
     for c in range(3):
-        key[:, c] = np.round(pts[first, c].astype(np.float64) / merge_tol_mm)
+        key[:, c] = np.round(np.take(pts[:, c], first).astype(np.float64) / merge_tol_mm)
     by_key = np.lexsort((key[:, 2], key[:, 1], key[:, 0]))
     key = key[by_key]
     new = np.ones(len(by_key), dtype=bool)
@@ -129,7 +129,7 @@ def _same_bits(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     new = np.zeros(n, dtype=bool)
     new[0] = True
     for c in range(words.shape[1]):
-        col = np.ascontiguousarray(words[:, c])[order]
+        col = np.take(words[:, c], order)
         new[1:] |= col[1:] != col[:-1]
     del col
     run = np.cumsum(new) - 1

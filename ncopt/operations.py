@@ -227,7 +227,7 @@ def _samples(tp: Toolpath, points: np.ndarray, spacing_mm: float) -> _Samples:
     5 axes: with one tilted tool axis over them (3+2) the moves are seen in a frame whose
     Z is that axis (levels and slopes along the tool); where the axis turns (simultaneous
     5-axis) a move with the tool tilted follows the surface, whatever its tip's Z."""
-    a, b = tp.xyz_mm[points - 1], tp.xyz_mm[points]
+    a, b = np.take(tp.xyz_mm, points - 1, axis=0), np.take(tp.xyz_mm, points, axis=0)
     turning = np.zeros(points.shape, dtype=bool)
     frame = _tool_frame(tp, points)
     if frame is not None:
@@ -292,7 +292,7 @@ def _retraced(tp: Toolpath, geo: np.ndarray, sm: _Samples, radius_mm: float) -> 
     flat = np.flatnonzero(~sm.sloped)
     if flat.size == 0 or geo.size < 2:
         return out
-    a, b = tp.xyz_mm[geo - 1], tp.xyz_mm[geo]
+    a, b = np.take(tp.xyz_mm, geo - 1, axis=0), np.take(tp.xyz_mm, geo, axis=0)
     frame = _tool_frame(tp, geo)  # 3+2: the samples are in the tool's frame, so the moves too
     if frame is not None:
         a, b = a @ frame.T, b @ frame.T
@@ -480,7 +480,7 @@ def _parts(tp: Toolpath, pts: np.ndarray, feed: np.ndarray, diameter_mm: float) 
     r = np.flatnonzero(tp.motion[pts] == Motion.RAPID)
     prev = np.concatenate(([0], cf[r[:-1]])) if r.size else r
     starts = r[(cf[r] - prev) > 0] if r.size else r
-    d = tp.xyz_mm[feed] - tp.xyz_mm[feed - 1]
+    d = np.take(tp.xyz_mm, feed, axis=0) - np.take(tp.xyz_mm, feed - 1, axis=0)
     plunge = np.abs(d[:, 2]) > 0.9 * np.maximum(row_norms(d), 1e-12)
     f = tp.feed_mm_min[feed]
     typical = _weighted_median(f[~plunge], tp.seg_len_mm[feed][~plunge])  # plunges aside

@@ -200,7 +200,7 @@ def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, sour
         fixed_rpm=cmd_rpm[win].copy(), spindle_start=base.spindle_start[win],
         running=base.running[win], k_limited=cutting)
     feed = tp.feed_mm_min[fp]
-    d = tp.xyz_mm[fp] - tp.xyz_mm[np.maximum(fp - 1, 0)]
+    d = np.take(tp.xyz_mm, fp, axis=0) - np.take(tp.xyz_mm, np.maximum(fp - 1, 0), axis=0)
     length = np.maximum(row_norms(d), 1e-12)
     plunge = -d[:, 2] > PLUNGE * length
     vertical = np.abs(d[:, 2]) > 0.9 * length
