@@ -221,6 +221,9 @@ def spatial_order(points_mm: np.ndarray, cell_mm: float = 0.5) -> np.ndarray:
     return np.argsort(code, kind="stable")
 
 
+_EDGE_CHUNK = 1 << 17  # faces per chunk of mesh_resolution_mm: ~10 MB of temporaries
+
+
 class EdgeLengths(NamedTuple):
     """Triangle edge lengths of a mesh, mm: compare them with the tool radius."""
 
@@ -244,10 +247,11 @@ def mesh_resolution_mm(mesh: Mesh) -> EdgeLengths:
     """
     V, F = mesh.V, mesh.F
     lengths = np.empty((3, F.shape[0]))  # edge k from corner k to k+1, corner by corner
-    corner = [np.take(V, F[:, k], axis=0) for k in range(3)]
-    for k in range(3):
-        lengths[k] = row_norms(corner[k] - corner[(k + 1) % 3])  # np.linalg.norm's sums
-    del corner
+    for lo in range(0, F.shape[0], _EDGE_CHUNK):  # temporaries of a chunk only
+        f = F[lo:lo + _EDGE_CHUNK]
+        corner = [np.take(V, f[:, k], axis=0) for k in range(3)]
+        for k in range(3):  # np.linalg.norm's sums
+            lengths[k, lo:lo + f.shape[0]] = row_norms(corner[k] - corner[(k + 1) % 3])
     lengths = lengths.ravel()
     if lengths.size == 0:
         return EdgeLengths(0.0, 0.0, 0.0)

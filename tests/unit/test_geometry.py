@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -327,6 +329,33 @@ def test_mesh_resolution_of_a_unit_grid():
     assert res.median_mm == pytest.approx(1.0)
     assert res.max_mm == pytest.approx(np.sqrt(2.0))
     assert 1.0 <= res.p95_mm <= np.sqrt(2.0)
+
+
+def test_mesh_resolution_is_the_same_in_chunks(monkeypatch):
+    # chunk by chunk (bounded temporaries) and in one go: the same lengths to the bit
+    from ncopt import mesh as mesh_module
+    rng = np.random.default_rng(7)
+    m = grid_mesh(np.cumsum(rng.uniform(0.1, 1.0, 9)), np.cumsum(rng.uniform(0.1, 1.0, 8)),
+                  lambda x: np.sin(x) * 0.3)
+    monkeypatch.setattr(mesh_module, "_EDGE_CHUNK", 10**9)
+    whole = geometry.mesh_resolution_mm(m)
+    for chunk in (1, 7, m.n_faces - 1):
+        monkeypatch.setattr(mesh_module, "_EDGE_CHUNK", chunk)
+        assert geometry.mesh_resolution_mm(m) == whole
+
+
+def test_a_rewrite_reports_the_mesh_median_edge(bowl_stl, tmp_path):
+    # measured in a thread of its own beside the main thread (ncopt.api)
+    from ncopt import api
+    from ncopt.model import Cutter, Machine
+    text = Path(__file__).resolve().parents[2].joinpath("samples", "bowl.mpf").read_bytes()
+    path = tmp_path / "bowl.mpf"
+    path.write_bytes(text[:120_000].rsplit(b"\n", 1)[0] + b"\nM30\n")
+    job = api.Job(cutter=Cutter(16.0, 2), machine=Machine(accel_rad_s2=227.0, max_rpm=15000.0))
+    summary = api.rewrite_file(path, job, mesh_path=bowl_stl).summary
+    expected = geometry.mesh_resolution_mm(geometry.load_stl(bowl_stl)).median_mm
+    assert summary.mesh_edge_mm == expected
+    assert api.rewrite_file(path, job).summary.mesh_edge_mm is None
 
 
 def _merged_by_sorting_all_corners(tri: np.ndarray, tol_mm: float) -> Mesh:
