@@ -186,23 +186,9 @@ def rewrite_file(path: str | Path, job: Job, mesh_path: str | Path | None = None
 
 
 def _mesh_index(mesh_path: str | Path) -> MeshIndex:
-    return MeshIndex(load_stl(mesh_path))
-
-
-def _edge_lengths_beside(mesh_index: MeshIndex | None) -> Future | None:
-    """The mesh's edge lengths (for the summary) in a thread of their own.
-
-    Started once the mesh is loaded, they run on the core the main thread's Python work
-    up to the contacts leaves free, not in the mesh's thread, where both cores are busy
-    (the program's parse beside it).
-    """
-    if mesh_index is None:
-        return None
-    pool = ThreadPoolExecutor(1, thread_name_prefix="ncopt-edges")
-    try:
-        return pool.submit(getattr, mesh_index, "edge_lengths")
-    finally:
-        pool.shutdown(wait=False)
+    index = MeshIndex(load_stl(mesh_path))
+    index.edge_lengths  # for the summary, while the main thread still parses
+    return index
 
 
 def _loaded(mesh_index: MeshIndex | Future | None) -> MeshIndex | None:
@@ -245,7 +231,6 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
             prog = read_text(text, path, job, found.name)
             tp = interpret(prog, kinematics=job.kinematics)
             mesh_index = _loaded(mesh_index)
-            edges = _edge_lengths_beside(mesh_index)
             idx = planner.block_index(tp.line)
             s_style = detect_style(prog, S_CODE)
             f_style = detect_style(prog, F_CODE, default_decimals=1)
@@ -260,8 +245,7 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
             job = replace(job, options=replace(job.options, f_quantum_mm_min=quantum,
                                                s_changes=mode))
             work = plan_program(prog, tp, idx, job, mesh_index)
-            mesh_edge = float(edges.result().median_mm) if edges is not None else None
-            del edges
+            mesh_edge = float(mesh_index.edge_lengths.median_mm) if mesh_index else None
             del mesh_index  # the largest object of a big job; verification needs memory too
             if mesh_edge is not None:  # it was built in its own thread's arena: hand that back
                 release_freed_memory(force=True)

@@ -345,7 +345,7 @@ def test_mesh_resolution_is_the_same_in_chunks(monkeypatch):
 
 
 def test_a_rewrite_reports_the_mesh_median_edge(bowl_stl, tmp_path):
-    # measured in a thread of its own beside the main thread (ncopt.api)
+    # measured in the mesh's loading thread (ncopt.api)
     from ncopt import api
     from ncopt.model import Cutter, Machine
     text = Path(__file__).resolve().parents[2].joinpath("samples", "bowl.mpf").read_bytes()
