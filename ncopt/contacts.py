@@ -208,10 +208,11 @@ def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index:
     contact moves along the ball as the axis turns, which the adaptive refinement
     (built on a fixed axis) does not look for.
     """
-    # the interpreter's and the mesh loading's leftovers; while a rewrite holds its memory
-    # (ncopt.memory) only beside a mesh, the largest object, which is alive until the end
-    # of the planning
-    release_freed_memory(force=mesh_index is not None)
+    # the interpreter's leftovers (outside a rewrite); a rewrite keeps them for the contacts
+    # to reuse, with a mesh too: forced here, the ~300 MB handed back were faulted in again
+    # at once (system time +0.1-0.2 s) and the peak was no lower (paper case with the
+    # mesh, 976-1017 MB kept against 996-1012 MB handed back)
+    release_freed_memory(force=False)
     if mesh_index is not None and tp.tool_axis is not None:
         sample_mm = min(sample_mm, AXIS_SAMPLE_MM)
         xyz, point = sample_points(tp, sample_mm)
