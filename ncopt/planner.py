@@ -180,10 +180,9 @@ def lookahead(blocks: Blocks, machine: Machine, cut: CuttingData, teeth: int,
     ch_s2, ch_s, ch_ratio = _chains(inc_s2), _chains(inc_s), _chains(ratio_inc)
     for _ in range(MAX_ITERATIONS):
         before = s
-        s = np.sqrt(np.maximum(_two_way_min(s * s, inc_s2, ch_s2), 0.0))
-        s = np.minimum(s, _two_way_min(s, inc_s, ch_s))
-        s = np.minimum(s, np.exp(_two_way_min(np.log(np.maximum(s, 1e-300)), ratio_inc,
-                                              ch_ratio)))
+        s = np.sqrt(np.maximum(_two_way_min_on(s * s, ch_s2), 0.0))
+        s = np.minimum(s, _two_way_min_on(s, ch_s))
+        s = np.minimum(s, np.exp(_two_way_min_on(np.log(np.maximum(s, 1e-300)), ch_ratio)))
         if np.allclose(s, before, rtol=1e-12, atol=CONVERGED_RPM):
             break
     s = np.maximum(s, np.minimum(s_lo, cap))
@@ -296,17 +295,20 @@ def _chains(inc: np.ndarray):
     return idx, seg, cum
 
 
-def _two_way_min(x: np.ndarray, inc: np.ndarray, chains=False) -> np.ndarray:
+def _two_way_min(x: np.ndarray, inc: np.ndarray) -> np.ndarray:
     """The largest y <= x with y_b <= y_(b-1) + inc_b and y_b <= y_(b+1) + inc_(b+1).
 
     Both passes are running minima: forward ``y_b = C_b + min_(j<=b)(x_j - C_j)``,
     backward ``y_b = -C_b + min_(j>=b)(y_j + C_j)`` with C the cumulative sum of
     inc.  An infinite inc_b removes the constraint between b-1 and b: the sums
-    restart there.  ``chains``: :func:`_chains` of ``inc``, if found already.
+    restart there.
     """
+    return _two_way_min_on(x, _chains(inc))
+
+
+def _two_way_min_on(x: np.ndarray, chains) -> np.ndarray:
+    """:func:`_two_way_min` with ``chains``, :func:`_chains` of inc, found already."""
     out = x.copy()
-    if chains is False:
-        chains = _chains(inc)
     if chains is None:
         return out
     idx, seg, cum = chains
