@@ -110,12 +110,12 @@ _MIX = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9,
 def _same_bits(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Rows with the same bytes: ``(order, run, first)``.
 
-    ``order`` sorts the rows by a hash of their bytes; ``run[i]`` numbers the run
-    of equal rows that ``order[i]`` is in, ``first[r]`` is the smallest row of run
-    ``r``.  A run never holds two different rows; rows whose hashes collide may
-    split a run in two (harmless to :func:`mesh_from_triangles`, which merges by
-    grid point afterwards).  The columns are compared one by one (a gather of
-    whole rows is 4x slower).
+    ``order`` sorts the rows by a hash of their bytes (its high bits, then the row
+    number); ``run[i]`` numbers the run of equal rows that ``order[i]`` is in,
+    ``first[r]`` is the smallest row of run ``r``.  A run never holds two different
+    rows; rows whose hashes collide may split a run in two (harmless to
+    :func:`mesh_from_triangles`, which merges by grid point afterwards).  The columns
+    are compared one by one (a gather of whole rows is 4x slower).
     """
     n = pts.shape[0]
     if n == 0:
@@ -124,7 +124,15 @@ def _same_bits(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     h = np.zeros(n, dtype=np.uint64)
     for c in range(words.shape[1]):
         h ^= words[:, c].astype(np.uint64) * _MIX[c % _MIX.size]
-    order = np.argsort(h)
+    # the hash's high bits with the row in the low ones, sorted: the rows in hash order
+    # (an argsort of the hashes took 4x as long: 0.15 against 0.04 s for 3M rows)
+    bits = np.uint64(max(1, (n - 1).bit_length()))
+    h >>= bits
+    h <<= bits
+    h |= np.arange(n, dtype=np.uint64)
+    h.sort()
+    h &= (np.uint64(1) << bits) - np.uint64(1)
+    order = h.view(np.int64)
     del h
     new = np.zeros(n, dtype=bool)
     new[0] = True

@@ -391,6 +391,21 @@ def test_corners_merge_by_grid_point_in_key_order(corner, jitter, pitch, seed, d
     np.testing.assert_array_equal(ours.F, expected.F)
 
 
+def test_corners_merge_the_same_when_every_hash_collides(monkeypatch):
+    """Equal hashes for all rows (each run then split wherever equal corners are not
+    neighbours in file order): the same mesh as sorting every corner."""
+    import ncopt.mesh
+    rng = np.random.default_rng(7)
+    tri = (rng.integers(0, 4, size=(300, 3, 3)) * 0.5).astype(np.float32)
+    expected = _merged_by_sorting_all_corners(tri, 1e-6)
+    monkeypatch.setattr(ncopt.mesh, "_MIX", np.zeros(6, dtype=np.uint64))
+    order, run, first = ncopt.mesh._same_bits(tri.reshape(-1, 3))
+    assert np.array_equal(order, np.arange(900)) and run[-1] + 1 > 64  # split: > 4^3 points
+    ours = geometry.mesh_from_triangles(tri)
+    assert ours.V.tobytes() == expected.V.tobytes()
+    np.testing.assert_array_equal(ours.F, expected.F)
+
+
 def test_corner_normals_at_sharp_vertices_are_libigls_split_normals():
     """Only the faces around a sharp vertex go to igl.per_corner_normals: their
     corners get exactly the normals of the call on the whole mesh."""
