@@ -188,6 +188,10 @@ def rewrite_file(path: str | Path, job: Job, mesh_path: str | Path | None = None
 def _mesh_index(mesh_path: str | Path) -> MeshIndex:
     index = MeshIndex(load_stl(mesh_path))
     index.edge_lengths  # for the summary, while the main thread still parses
+    # scipy.spatial (the operations' k-d trees) here, not in a third thread beside the
+    # parse and the mesh: an import holds the GIL, and with three busy threads on two
+    # cores the one that holds it is often the one waiting for a core
+    kdtree.load()
     return index
 
 
@@ -226,7 +230,8 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
         # The stages are inside the block, not in a call: a caller's frame would keep the
         # mesh's future, and so the mesh, alive.
         with working_memory():
-            kdtree.prefetch()  # scipy.spatial loads while the program is parsed
+            if not isinstance(mesh_index, Future):  # else the mesh's thread imports it
+                kdtree.prefetch()  # scipy.spatial loads while the program is parsed
             found = detect(text)
             prog = read_text(text, path, job, found.name)
             tp = interpret(prog, kinematics=job.kinematics)

@@ -5,7 +5,10 @@ distance functions and the rotations with it), about half of ``import ncopt.api`
 Code that imports ncopt and never searches neighbours (a library user reading
 programs, a rewrite with a mesh whose operations need no tree) does not pay it,
 and a rewrite starts the import in a thread while the program is parsed: most of
-the parse is numpy work that releases the GIL.
+the parse is numpy work that releases the GIL.  A rewrite that loads a mesh imports
+it in the mesh's thread instead (:func:`load`): an import holds the GIL, and a third
+busy thread on two cores often holds it while it waits for a core (bench/README.md,
+issue 14, eighth round).
 """
 
 from __future__ import annotations
@@ -32,6 +35,12 @@ def prefetch() -> None:
             return
         _started = threading.Thread(target=_import, name="ncopt-import-scipy", daemon=True)
         _started.start()
+
+
+def load() -> None:
+    """Import scipy.spatial in this thread, now (a thread that runs beside the parse
+    anyway, as a mesh's loading thread does, instead of a thread of its own)."""
+    _import()
 
 
 def _join() -> None:

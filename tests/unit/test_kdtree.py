@@ -98,3 +98,24 @@ def test_prefetch_starts_one_thread_per_process():
     """)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["True", "True"]
+
+
+def test_a_rewrite_with_a_mesh_imports_the_tree_in_the_meshs_thread():
+    # no third thread beside the parse and the mesh's: an import holds the GIL
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    done = _run(f"""
+        import sys, threading
+        from ncopt import api, kdtree
+        from ncopt.model import Cutter, Machine
+        where = []
+        load = kdtree.load
+        kdtree.load = lambda: (where.append(threading.current_thread().name), load())
+        job = api.Job(cutter=Cutter(16.0, 2), machine=Machine(accel_rad_s2=227.0,
+                                                              max_rpm=15000.0))
+        api.rewrite_file({root!r} + '/samples/bowl.mpf', job,
+                         mesh_path={root!r} + '/samples/bowl.stl')
+        print(where[0].startswith('ncopt-mesh'), kdtree._started is None,
+              'scipy.spatial' in sys.modules)
+    """)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["True", "True", "True"]
