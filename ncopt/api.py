@@ -188,7 +188,8 @@ def rewrite_file(path: str | Path, job: Job, mesh_path: str | Path | None = None
 def _mesh_index(mesh_path: str | Path) -> MeshIndex:
     index = MeshIndex(load_stl(mesh_path))
     index.edge_lengths  # for the summary, while the main thread still parses
-    # scipy.spatial (the operations' k-d trees) here, not in a third thread beside the
+    # scipy.spatial (the operations' k-d trees) here or in the main thread once it waits
+    # for the mesh (rewrite_text), whichever comes first; not in a third thread beside the
     # parse and the mesh: an import holds the GIL, and with three busy threads on two
     # cores the one that holds it is often the one waiting for a core
     kdtree.load()
@@ -235,6 +236,8 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
             found = detect(text)
             prog = read_text(text, path, job, found.name)
             tp = interpret(prog, kinematics=job.kinematics)
+            if isinstance(mesh_index, Future) and not mesh_index.done():
+                kdtree.load()  # while the mesh's thread finishes (a short program)
             mesh_index = _loaded(mesh_index)
             idx = planner.block_index(tp.line)
             s_style = detect_style(prog, S_CODE)

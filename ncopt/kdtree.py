@@ -6,9 +6,10 @@ Code that imports ncopt and never searches neighbours (a library user reading
 programs, a rewrite with a mesh whose operations need no tree) does not pay it,
 and a rewrite starts the import in a thread while the program is parsed: most of
 the parse is numpy work that releases the GIL.  A rewrite that loads a mesh imports
-it in the mesh's thread instead (:func:`load`): an import holds the GIL, and a third
-busy thread on two cores often holds it while it waits for a core (bench/README.md,
-issue 14, eighth round).
+it instead (:func:`load`) in the mesh's thread once the mesh is built, or in the main
+thread if that has to wait for the mesh first: an import holds the GIL, and a third busy
+thread on two cores often holds it while it waits for a core (bench/README.md, issue 14,
+eighth round).
 """
 
 from __future__ import annotations

@@ -100,22 +100,31 @@ def test_prefetch_starts_one_thread_per_process():
     assert done.stdout.split() == ["True", "True"]
 
 
-def test_a_rewrite_with_a_mesh_imports_the_tree_in_the_meshs_thread():
-    # no third thread beside the parse and the mesh's: an import holds the GIL
+@pytest.mark.parametrize("slow, first", [("interpret", "ncopt-mesh"),
+                                         ("MeshIndex", "MainThread")])
+def test_a_rewrite_with_a_mesh_imports_the_tree_where_a_thread_is_idle(slow, first):
+    # no third thread beside the parse and the mesh's (an import holds the GIL): the
+    # mesh's thread imports it when the program is still being read, the main thread
+    # when it has to wait for the mesh anyway
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     done = _run(f"""
-        import sys, threading
-        from ncopt import api, kdtree
+        import sys, threading, time
+        from ncopt import api, geometry, kdtree
         from ncopt.model import Cutter, Machine
         where = []
         load = kdtree.load
         kdtree.load = lambda: (where.append(threading.current_thread().name), load())
+        def slowly(f):
+            return lambda *a, **k: (time.sleep(1.5), f(*a, **k))[1]
+        if {slow!r} == "interpret":
+            api.interpret = slowly(api.interpret)
+        else:
+            api.MeshIndex = slowly(api.MeshIndex)
         job = api.Job(cutter=Cutter(16.0, 2), machine=Machine(accel_rad_s2=227.0,
                                                               max_rpm=15000.0))
         api.rewrite_file({root!r} + '/samples/bowl.mpf', job,
                          mesh_path={root!r} + '/samples/bowl.stl')
-        print(where[0].startswith('ncopt-mesh'), kdtree._started is None,
-              'scipy.spatial' in sys.modules)
+        print(where[0].split('_')[0], kdtree._started is None, 'scipy.spatial' in sys.modules)
     """)
     assert done.returncode == 0, done.stderr
-    assert done.stdout.split() == ["True", "True", "True"]
+    assert done.stdout.split() == [first, "True", "True"]
