@@ -39,8 +39,9 @@ def prefetch() -> None:
 
 
 def load() -> None:
-    """Import scipy.spatial in this thread, now (a thread that runs beside the parse
-    anyway, as a mesh's loading thread does, instead of a thread of its own)."""
+    """Import scipy.spatial in the calling thread, now: a thread that is there anyway (a
+    mesh's loading thread once the mesh is built, the main thread while it waits for the
+    mesh), not one of its own beside them."""
     _import()
 
 
