@@ -34,15 +34,8 @@ def prefetch() -> None:
     with _lock:
         if _started is not None:
             return
-        _started = threading.Thread(target=_import, name="ncopt-import-scipy", daemon=True)
+        _started = threading.Thread(target=load, name="ncopt-import-scipy", daemon=True)
         _started.start()
-
-
-def load() -> None:
-    """Import scipy.spatial in the calling thread, now: a thread that is there anyway (a
-    mesh's loading thread once the mesh is built, the main thread while it waits for the
-    mesh), not one of its own beside them."""
-    _import()
 
 
 def _join() -> None:
@@ -57,7 +50,10 @@ if hasattr(os, "register_at_fork"):
     os.register_at_fork(before=_join)
 
 
-def _import() -> None:
+def load() -> None:
+    """Import scipy.spatial in the calling thread, now: the prefetch thread, or a thread
+    that is there anyway (a mesh's loading thread once the mesh is built, the main thread
+    while it waits for the mesh) instead of one of its own beside them."""
     try:
         import scipy.spatial  # noqa: F401
     except Exception:  # the caller's own import raises it again, where it is needed
