@@ -796,3 +796,39 @@ def test_exit_verification_writes_nothing(tmp_path, flat, monkeypatch):
     assert result.stderr == f"{flat}: the rewrite changed more than S and F words; nothing " \
                             "written\n"
     assert [p.name for p in tmp_path.iterdir()] == ["flat.nc"]  # no output, no temporary
+
+
+@pytest.mark.parametrize("geometry, feed, message", [
+    (True, True, ": the rewrite changed more than S and F words; nothing written"),
+    (True, False, ": the rewrite changed more than S and F words; nothing written"),
+    (False, True, ":{line}: rewriting the result again would change it; nothing written"),
+])
+def test_verification_reports_the_masked_comparison_first(tmp_path, flat, monkeypatch,
+                                                          geometry, feed, message):
+    """The checks run side by side (the masked comparison in a thread); a rewrite that fails
+    several is reported by the masked comparison, as when they ran one after the other."""
+    import ncopt.api
+
+    real = ncopt.api.apply_edits
+    where = {}
+
+    def corrupting(text, edits):
+        out = real(text, edits)
+        lines = out.split("\n")
+        planned = [i for i, ln in enumerate(lines) if " F" in ln and ln.startswith("X")]
+        if feed:  # a planned F written one unit too low: the checks would rewrite it
+            k = planned[0]
+            word = lines[k].rsplit(" F", 1)[1].split()[0]
+            lines[k] = lines[k].replace(f" F{word}", f" F{float(word) - 1.0:.0f}", 1)
+            where["line"] = k + 1  # of the output, as the message gives it
+        out = "\n".join(lines)
+        if geometry:
+            out = out.replace("X10.000 Y1.600", "X10.001 Y1.600", 1)
+        return out
+
+    monkeypatch.setattr(ncopt.api, "apply_edits", corrupting)
+    out = tmp_path / "out.nc"
+    result = invoke(["rewrite", flat, "--diameter", "16", *SPINDLE, "-o", out])
+    assert result.exit_code == Exit.VERIFICATION
+    assert result.stderr == f"{flat}{message.format(**where)}\n"
+    assert not out.exists()
