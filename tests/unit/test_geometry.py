@@ -261,6 +261,41 @@ def test_pool_gives_exactly_the_serial_answers(sphere_index):
     np.testing.assert_array_equal(pooled.r_eff_mm, serial.r_eff_mm)
 
 
+def _newton_by_rows(fr, centre, steps=2):
+    """The offset Newton written on (m, 3) rows: the reference of ``_offset_newton``."""
+    dot = geometry._dot
+    u, v = fr.u, fr.v
+    m = fr.phong(u, v)
+    t = dot(centre - (fr.p0 + u[:, None] * fr.e1 + v[:, None] * fr.e2), m) / dot(m, m)
+    for _ in range(steps):
+        a, b = fr.e1 + t[:, None] * fr.m1, fr.e2 + t[:, None] * fr.m2
+        rhs = centre - (fr.p0 + u[:, None] * fr.e1 + v[:, None] * fr.e2) - t[:, None] * m
+        bm = np.cross(b, m)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            det = dot(a, bm)
+            u = u + dot(rhs, bm) / det
+            v = v + dot(a, np.cross(rhs, m)) / det
+            t = t + dot(a, np.cross(b, rhs)) / det
+        m = fr.phong(u, v)
+    bary_min = np.minimum(np.minimum(u, v), 1.0 - u - v)
+    return geometry._unit(m), np.where(np.isfinite(bary_min), bary_min, -np.inf)
+
+
+def test_offset_newton_by_coordinates_gives_the_bits_of_rows(sphere_index):
+    """The Newton steps run on coordinate arrays: the same operations in the same order
+    as on (m, 3) rows, so the same bits (the rewrites' outputs depend on them)."""
+    centres = 24.0 * directions(5000, seed=7, max_tilt_deg=180.0)
+    centres[:50] *= 20.0 / 24.0  # on the mesh: degenerate steps (NaN, inf) alike
+    cl = sphere_index.closest(centres)
+    fr = geometry._frame(sphere_index, cl.face, cl.point_mm)
+    got, want = geometry._offset_newton(fr, centres), _newton_by_rows(fr, centres)
+    for a, b in zip(got, want):
+        np.testing.assert_array_equal(a, b)
+    a, b = np.random.default_rng(3).normal(size=(2, 1000, 3))
+    np.testing.assert_array_equal(geometry._dot(a, b), (a[:, 0] * b[:, 0] + a[:, 2] * b[:, 2])
+                                  + a[:, 1] * b[:, 1])
+
+
 # ---------------------------------------------------------------- STL and mesh
 
 
