@@ -379,31 +379,13 @@ def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_s
     out_prog = read_text(out, prog.path, job, detected)
     in_stamps = _stamp_lines(prog)
     out_stamps = _stamp_lines(out_prog)
-    # the output's masked text (numpy over its bytes) in a thread, beside the other checks
-    # (Python loops and small arrays); their failures are reported in the same order as
-    # one after the other: the masked comparison's first
-    with ThreadPoolExecutor(1, thread_name_prefix="ncopt-checks") as pool:
-        out_masked = pool.submit(_masked_without, out_prog, out_stamps)
-        if masked_input is None:
-            masked_input = _masked_input(prog)
-        try:
-            _check_rewrite(prog, tp, out_prog, in_stamps, out_stamps, targets, s_style,
-                           f_style, scope)
-            failure = None
-        except VerificationError as exc:
-            failure = exc
-        same = out_masked.result() == masked_input
-    del masked_input, out_masked
+    if masked_input is None:
+        masked_input = _masked_input(prog)
+    same = _masked_without(out_prog, out_stamps) == masked_input
+    del masked_input
     if not same:
         raise VerificationError("the rewrite changed more than S and F words; nothing written",
                                 prog.path)
-    if failure is not None:
-        raise failure
-
-
-def _check_rewrite(prog, tp, out_prog, in_stamps, out_stamps, targets, s_style, f_style,
-                   scope) -> None:
-    """The verification's checks but the masked comparison (:func:`verify`)."""
     shift = len(out_stamps) - len(in_stamps)
     if scope is not None:
         _check_untouched(prog, out_prog, in_stamps, out_stamps, scope, tp)
