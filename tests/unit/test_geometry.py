@@ -285,10 +285,15 @@ def test_offset_newton_by_coordinates_gives_the_bits_of_rows(sphere_index):
     """The Newton steps run on coordinate arrays: the same operations in the same order
     as on (m, 3) rows, so the same bits (the rewrites' outputs depend on them)."""
     centres = 24.0 * directions(5000, seed=7, max_tilt_deg=180.0)
-    centres[:50] *= 20.0 / 24.0  # on the mesh: degenerate steps (NaN, inf) alike
+    centres[:50] *= 20.0 / 24.0  # next to the mesh (the sphere's facets lie inside it)
     cl = sphere_index.closest(centres)
     fr = geometry._frame(sphere_index, cl.face, cl.point_mm)
-    got, want = geometry._offset_newton(fr, centres), _newton_by_rows(fr, centres)
+    u, v = fr.u.copy(), fr.v.copy()
+    u[50:60], v[60:70] = np.nan, np.inf  # a degenerate face's coordinates: NaN alike
+    fr = fr._replace(u=u, v=v)
+    with np.errstate(invalid="ignore"):
+        got, want = geometry._offset_newton(fr, centres), _newton_by_rows(fr, centres)
+    assert np.isneginf(got[1][50:70]).all() and np.isfinite(got[1][:50]).all()
     for a, b in zip(got, want):
         np.testing.assert_array_equal(a, b)
     a, b = np.random.default_rng(3).normal(size=(2, 1000, 3))
