@@ -805,8 +805,8 @@ def test_exit_verification_writes_nothing(tmp_path, flat, monkeypatch):
 ])
 def test_verification_reports_the_masked_comparison_first(tmp_path, flat, monkeypatch,
                                                           geometry, feed, message):
-    """The checks run side by side (the masked comparison in a thread); a rewrite that fails
-    several is reported by the masked comparison, as when they ran one after the other."""
+    """A rewrite that fails several of the checks is reported by the masked comparison
+    first; one that only the rerun of the rewrite catches, at the line of its F word."""
     import ncopt.api
 
     real = ncopt.api.apply_edits
