@@ -13,6 +13,7 @@ from __future__ import annotations
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -166,12 +167,15 @@ class Result:
 
 
 def rewrite_file(path: str | Path, job: Job, mesh_path: str | Path | None = None,
-                 data: bytes | None = None) -> Result:
-    """Read a program (or use ``data`` as its bytes) and rewrite it."""
+                 data: bytes | None = None,
+                 progress: Callable[[str], None] | None = None) -> Result:
+    """Read a program (or use ``data`` as its bytes) and rewrite it.
+
+    ``progress``: called with the name of each stage as it starts (``"planning"``)."""
     text = (Path(path).read_bytes() if data is None else data).decode("latin-1")
     del data  # the file's bytes are not kept through the rewrite (the text is)
     if mesh_path is None:
-        return rewrite_text(text, job, str(path))
+        return rewrite_text(text, job, str(path), progress=progress)
     # The mesh loads in a thread while the program is parsed and interpreted (STL
     # reading and libigl's normals run largely outside the GIL, fcpw's BVH build
     # does not: 1M blocks and 1M triangles, 5.0 s one after the other, 4.2 s together).
@@ -180,7 +184,8 @@ def rewrite_file(path: str | Path, job: Job, mesh_path: str | Path | None = None
     pool = ThreadPoolExecutor(1, thread_name_prefix="ncopt-mesh")
     try:
         with small_pages():  # from the mesh's first array on (ncopt.memory)
-            return rewrite_text(text, job, str(path), pool.submit(_mesh_index, mesh_path))
+            return rewrite_text(text, job, str(path), pool.submit(_mesh_index, mesh_path),
+                                progress=progress)
     finally:  # an error in the program is reported without waiting for the mesh
         pool.shutdown(wait=False, cancel_futures=True)
 
@@ -217,11 +222,13 @@ def read_text(text: str, path: str, job: Job, detected: str | None = None) -> Pr
 
 
 def rewrite_text(text: str, job: Job, path: str = "<input>",
-                 mesh_index: MeshIndex | Future | None = None) -> Result:
+                 mesh_index: MeshIndex | Future | None = None,
+                 progress: Callable[[str], None] | None = None) -> Result:
     """Rewrite a program's S and F words; every other byte stays as it is.
 
     ``mesh_index``: the part's mesh, or a ``concurrent.futures.Future`` of it
     (loading while the program is read); None: normals from the toolpath.
+    ``progress``: called with the name of each stage as it starts.
     Raises NothingToPlan (exit 5) when no operation of the program can be planned.
     """
     # numpy's arrays on small pages throughout (ncopt.memory.small_pages).
@@ -233,10 +240,14 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
         with working_memory():
             if not isinstance(mesh_index, Future):  # else the mesh's thread imports it
                 kdtree.prefetch()  # scipy.spatial loads while the program is parsed
+            show = progress or (lambda stage: None)
+            show(f"reading {path}")
             found = detect(text)
             prog = read_text(text, path, job, found.name)
+            show("following the toolpath")
             tp = interpret(prog, kinematics=job.kinematics)
             if isinstance(mesh_index, Future) and not mesh_index.done():
+                show("reading the mesh")
                 kdtree.load()  # while the mesh's thread finishes (a short program)
             mesh_index = _loaded(mesh_index)
             idx = planner.block_index(tp.line)
@@ -252,11 +263,13 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
             mode = job.options.s_changes or default_s_changes(control)
             job = replace(job, options=replace(job.options, f_quantum_mm_min=quantum,
                                                s_changes=mode))
+            show("finding the contacts and planning S and F")
             work = plan_program(prog, tp, idx, job, mesh_index)
             mesh_edge = float(mesh_index.edge_lengths.median_mm) if mesh_index else None
             del mesh_index  # the largest object of a big job; verification needs memory too
             if mesh_edge is not None:  # it was built in its own thread's arena: hand that back
                 release_freed_memory(force=True)
+            show("writing the new S and F words")
             targets = _targets(prog, tp, idx, work, f_style)
             consumers = _with_fixed_lines(tp, idx, work.scope, targets)
             with ThreadPoolExecutor(1, thread_name_prefix="ncopt-checks") as pool:
@@ -273,6 +286,7 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
                 lag_warnings = lag.result()
                 masked_input = masked_input.result() if masked_input is not None else None
         if job.verify:
+            show("checking the output")
             verify(prog, tp, out, consumers, s_style, f_style, job, found.name, work.scope,
                    masked_input)
         del masked_input

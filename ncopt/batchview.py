@@ -90,7 +90,7 @@ def _table(rows, base: Path | None, width: int) -> Table:
     file_width = min(file_width, max(len(n) for n in [*names, "file"]))
     t = Table(box=box.SIMPLE_HEAD, padding=(0, 1), pad_edge=False, show_footer=True,
               show_edge=False, collapse_padding=True)  # two spaces between columns
-    t.add_column("file", footer=f"{len(rows)} files", width=file_width, no_wrap=True)
+    t.add_column("file", footer=_count(len(rows), "file"), width=file_width, no_wrap=True)
     for head, foot, w in zip(heads, footer, widths):
         t.add_column(head, footer=foot, width=w, no_wrap=True,
                      justify="left" if head == "status" else "right")
@@ -112,8 +112,13 @@ def summary_lines(reports) -> list[str]:
                      f"{'file' if len(ok) == 1 else 'files'} {before:.1f} -> {after:.1f} min: "
                      f"{before - after:.1f} min saved{pct}")
     lines.append(f"ncopt: {counts['ok']} rewritten, {counts['unchanged']} unchanged (nothing to "
-                 f"plan), {counts['failed']} failed, of {len(reports)} files")
+                 f"plan), {counts['failed']} failed, of {_count(len(reports), 'file')}")
     return lines
+
+
+def _count(n: int, noun: str) -> str:
+    """``1 file``, ``3 files``."""
+    return f"{n} {noun}" + ("" if n == 1 else "s")
 
 
 def _minutes(before: float, after: float) -> str:

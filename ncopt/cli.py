@@ -23,7 +23,8 @@ import typer
 from . import __version__
 from .errors import (FileError, MeshError, NcoptError, NcParseError, NothingToPlan,
                      PlanningError, UsageError, VerificationError)
-from .stdio import command_faults, err, interrupt, read_programs, say, write_stdout
+from .stdio import (command_faults, err, interrupt, read_programs, say, stages, stderr_console,
+                    write_stdout)
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -357,7 +358,8 @@ def rewrite(
     target = output_file(output, input)
     [data] = read_programs([input])
     try:
-        result = rewrite_file(input, job, mesh_path=mesh, data=data)
+        with stages(quiet or as_json) as show:
+            result = rewrite_file(input, job, mesh_path=mesh, data=data, progress=show)
     except NothingToPlan:
         if target is None:  # a filter never eats its input
             write_stdout(data)
@@ -517,7 +519,7 @@ def batch(
     tasks = [Task(str(f), str(t), job, None if mesh is None else str(mesh), in_place,
                   str(page_path(report, base, f)) if html else None)
              for f, t in zip(files, targets)]
-    view = BatchView(err, files, quiet=quiet)
+    view = BatchView(stderr_console(), files, quiet=quiet)
     try:
         with view:
             reports = run_batch(tasks, jobs or os.cpu_count() or 1, view.done)
@@ -597,23 +599,34 @@ def simulate(
 
     from .geometry import MeshIndex, load_stl
     from .model import CuttingData
-    from .simulate import simulate_program
 
     _check_outputs(color_by, csv, plot, plot_path)
     job = make_job(**_job_options(locals()))
     names = ([against] if against else []) + [program]
     programs = read_programs(names)
-    index = MeshIndex(load_stl(mesh)) if mesh else None
     runs = []
-    for name, data in zip(names, programs):
-        report, series = simulate_program(data.decode("latin-1"), job, index, path=name,
-                                          sample_mm=sample,
-                                          band=None if judged_band is None
-                                          else judged_band / 100.0)
-        if not runs and job.cutting is None:  # one target for all: the first program's
-            job = replace(job, cutting=CuttingData(report.vc_target_m_min, report.fz_target_mm))
-        runs.append((name, series, report))
+    with stages(quiet or as_json) as show:
+        if mesh:
+            show(f"reading the mesh {mesh}")
+        index = MeshIndex(load_stl(mesh)) if mesh else None
+        for name, data in zip(names, programs):
+            show(f"simulating {name}")
+            runs.append(_simulate_one(name, data, job, index, sample, judged_band))
+            if len(runs) == 1 and job.cutting is None:  # one target for all: the first's
+                report = runs[0][2]
+                job = replace(job, cutting=CuttingData(report.vc_target_m_min,
+                                                       report.fz_target_mm))
     _simulation_outputs(runs, as_json, csv, plot, plot_path, color_by, quiet)
+
+
+def _simulate_one(name, data, job, index, sample, judged_band):
+    """One program replayed: (name, series, report)."""
+    from .simulate import simulate_program
+
+    report, series = simulate_program(data.decode("latin-1"), job, index, path=name,
+                                      sample_mm=sample,
+                                      band=None if judged_band is None else judged_band / 100.0)
+    return name, series, report
 
 
 COLOR_BY = ("s_rpm", "f_mm_min", "d_eff_mm", "vc_m_min")

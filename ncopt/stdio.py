@@ -4,7 +4,8 @@ A write to stdout that fails (a closed pipe: ``ncopt rewrite x | head -1``; a fu
 stdout closed with ``>&-``) becomes a FileError naming ``<stdout>``, and stdout is then
 pointed at the null device so that the interpreter's last flush cannot print a
 traceback.  stderr is rich's console, made on first use: importing rich costs startup
-time that ``ncopt --help`` should not pay.
+time that ``ncopt --help`` should not pay.  On an interactive stderr, long commands show
+the stage they are in (:func:`stages`).
 """
 
 from __future__ import annotations
@@ -22,19 +23,46 @@ import typer
 from .errors import FileError, NcoptError, UsageError
 
 
-class _LazyConsole:
-    """rich's stderr console, made on first use."""
+_stderr_console = None
 
-    _console = None
+
+def stderr_console():
+    """rich's console on stderr, made on first use (the same one every time).
+
+    rich's own objects (a Progress, a Live display) take this one: they use the console
+    as a context manager and set its live display, which a proxy cannot stand in for."""
+    global _stderr_console
+    if _stderr_console is None:
+        from rich.console import Console
+        _stderr_console = Console(stderr=True, highlight=False, soft_wrap=True)
+    return _stderr_console
+
+
+class _LazyConsole:
+    """The stderr console for printing, made on first use (see :func:`stderr_console`)."""
 
     def __getattr__(self, name):
-        if _LazyConsole._console is None:
-            from rich.console import Console
-            _LazyConsole._console = Console(stderr=True, highlight=False, soft_wrap=True)
-        return getattr(_LazyConsole._console, name)
+        return getattr(stderr_console(), name)
 
 
 err = _LazyConsole()
+
+
+@contextmanager
+def stages(quiet: bool = False) -> Iterator[Callable[[str], None]]:
+    """A one-line display on an interactive stderr of what a long command is doing: a
+    spinner, the stage (``show("planning")``) and the time spent, gone when it ends.
+    Elsewhere (a pipe, a file, ``-q``) ``show`` does nothing, so logs stay clean."""
+    console = stderr_console()
+    if quiet or not console.is_terminal:
+        yield lambda stage: None
+        return
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
+                  console=console, transient=True) as progress:
+        task = progress.add_task("ncopt: starting", total=None)
+        yield lambda stage: progress.update(task, description=f"ncopt: {stage}")
 
 
 def stdout_console(**kwargs):
