@@ -278,6 +278,11 @@ class MeshIndex:
                              np.take(self.face_normal, np.maximum(tt[:, k], 0), axis=0))
             self.feature_edge[:, k] |= cos_angle < cos_limit
         del tt
+        # the vertices at the ends of those edges: a CC point there is on the crease too,
+        # whichever of the faces around the vertex the query returns
+        self.feature_vertex = np.zeros(V.shape[0], dtype=bool)
+        self.feature_vertex[F[self.feature_edge]] = True
+        self.feature_vertex[np.roll(F, -1, axis=1)[self.feature_edge]] = True
         cn = (self._corner_normals() if corner_normals is None else  # ours, or a copy
               np.array(corner_normals, dtype=np.float64).reshape(-1, 3, 3))
         # unit corner normals, the facet's where one is unusable: all corners as one
@@ -453,10 +458,16 @@ def _offset_newton(fr: _Frame, centre: np.ndarray, steps: int = 2) -> tuple:
 
 
 def _on_feature_edge(index: MeshIndex, face: np.ndarray, fr: _Frame) -> np.ndarray:
-    """The CC point lies on a sharp or boundary edge of its face (or at its ends)."""
+    """The CC point lies on a sharp or boundary edge of its face (or at its ends), or at
+    a corner of its face that is the end of such an edge of another face (a wall's
+    triangle that meets the crease above it at one corner only: its corner normal there
+    is the wall's, the contact's is between the wall's and the top's)."""
     # edge k joins corners k and k+1: it is where the coordinate of corner k+2 vanishes
     opposite = np.stack([fr.v, 1.0 - fr.u - fr.v, fr.u], axis=1)
-    return np.any((opposite <= 1e-6) & np.take(index.feature_edge, face, axis=0), axis=1)
+    on_edge = np.any((opposite <= 1e-6) & np.take(index.feature_edge, face, axis=0), axis=1)
+    weight = np.stack([1.0 - fr.u - fr.v, fr.u, fr.v], axis=1)  # corner k's coordinate
+    corner = np.take(index.feature_vertex, np.take(index.mesh.F, face, axis=0))
+    return on_edge | np.any((weight >= 1.0 - 1e-6) & corner, axis=1)
 
 
 def _clamp_cone(axis: np.ndarray, n: np.ndarray, max_rad: np.ndarray) -> np.ndarray:
