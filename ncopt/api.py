@@ -18,7 +18,7 @@ from typing import Callable
 import numpy as np
 
 from . import kdtree, planner, plans as _plans
-from .contacts import Method
+from .contacts import Method, below_top_mm
 from .controls import ANYWHERE, control_note, default_s_changes
 from .dialect import detect, resolve_decimal_point
 from .errors import VerificationError
@@ -113,6 +113,9 @@ class Summary:
     stepover_mm: float | None = None
     one_sided_points: int = 0
     no_cross_points: int = 0
+    # without a mesh: the share of the planned cut (by length) whose contact the toolpath
+    # cannot show, planned at the cutter's full radius (ncopt.contacts.unknown_contact)
+    unknown_contact_pct: float = 0.0
     close_s_words: int = 0
     control: str = ""
     control_source: str = ""
@@ -535,8 +538,42 @@ def _summary(prog, tp, idx, work: Work, targets: Targets, counts, mesh_edge, job
         summary = replace(summary, normals_from="toolpath", stepover_mm=est.stepover_mm,
                           one_sided_points=int(np.sum(est.confidence == ONE_SIDED)),
                           no_cross_points=int(np.sum((est.confidence == NO_CROSS)
-                                                     & sampled.contacts.cutting)))
+                                                     & sampled.contacts.cutting)),
+                          unknown_contact_pct=_unknown_share(tp, work, planned_pts)[0])
     return summary
+
+
+def _unknown_share(tp: Toolpath, work: Work, points: np.ndarray) -> tuple:
+    """Without a mesh, over the cut of ``points`` (mask): (percent of its length planned
+    at the cutter's full radius for want of a known contact, (n,) mask of those points)."""
+    unknown = np.zeros(tp.n, dtype=bool)
+    cut_mm = np.zeros(tp.n)  # each move's length that can touch the part
+    for view in work.views.values():
+        sampled = view.sampled
+        if sampled.unknown is None:
+            continue
+        mine = points & (tp.tool == view.tool)
+        known = np.flatnonzero(sampled.contacts.cutting & ~sampled.unknown & mine)
+        cut_mm[known] = tp.seg_len_mm[known]
+        new = np.flatnonzero(sampled.unknown & mine)
+        cut_mm[new] = below_top_mm(tp, new, sampled.top_mm, sampled.up)
+        unknown[new] = True
+    total = float(cut_mm.sum())
+    pct = 100.0 * float(cut_mm[unknown].sum()) / total if total > 0 else 0.0
+    return pct, unknown
+
+
+def _line_ranges(lines: np.ndarray, shown: int = 3) -> str:
+    """``19-21, 88, 102-140 and 12 more`` from sorted 0-based line numbers."""
+    if lines.size == 0:
+        return ""
+    breaks = np.flatnonzero(np.diff(lines) > 1)
+    starts = np.concatenate(([lines[0]], lines[breaks + 1]))
+    ends = np.concatenate((lines[breaks], [lines[-1]]))
+    parts = [f"{a + 1}" if a == b else f"{a + 1}-{b + 1}"
+             for a, b in zip(starts[:shown].tolist(), ends[:shown].tolist())]
+    more = f" and {starts.size - shown} more" if starts.size > shown else ""
+    return ", ".join(parts) + more
 
 
 def _lag_warnings(prog, tp, idx, work: Work, targets: Targets, job: Job) -> tuple:
@@ -628,12 +665,27 @@ def _plan_warnings(prog, tp, work, job) -> tuple:
                        "their S and F: their feed is too low for the resolution of the "
                        "program's F words to hold fz within its band (write F with more "
                        "decimals to plan them)")
+        out.extend(_unknown_warning(prog, tp, work, p))
         if p.reduced.any():
             op = work.ops[p.op]
             out.append(f"{prog.path}: {op.name}: {int(p.reduced.sum())} blocks off the cutting "
                        f"feed {p.cutting_feed_mm_min:g} mm/min or in the air (plunges, ramps, "
                        "lead-ins, links) keep the program's feed per tooth: F scaled with S")
     return tuple(out)
+
+
+def _unknown_warning(prog, tp: Toolpath, work: Work, p) -> list:
+    """Where a plan without a mesh could not see the contact: one located warning."""
+    pct, unknown = _unknown_share(tp, work, work.point_op == p.op)
+    if not unknown.any():
+        return []
+    lines = np.unique(tp.line[unknown])
+    op = work.ops[p.op]
+    return [f"{prog.path}:{int(lines[0]) + 1}: {op.name} (T{p.tool}): {pct:.1f} % of the cut "
+            f"({lines.size} blocks: lines {_line_ranges(lines)}) runs where the toolpath "
+            "cannot show the contact (down or up a wall, a plunge below the top of the cut, "
+            "a pass with no neighbour): planned as if the cutter cut at its full diameter, "
+            "so vc stays at or below its target there; give --mesh to plan it exactly"]
 
 
 def nominal_cutting_data(tp: Toolpath, selected: np.ndarray, cutter: Cutter,

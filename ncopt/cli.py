@@ -451,9 +451,10 @@ def print_summary(s: "Summary", console: "Console") -> None:
     if s.normals_from == "toolpath":
         say(f"ncopt: no mesh: normals from the toolpath (stepover {s.stepover_mm:.2f} mm); "
             f"{s.one_sided_points} points at the edge of the machined area planned conservatively")
-        if s.no_cross_points:
-            say(f"ncopt: {s.no_cross_points} cutting points have no neighbouring pass: their "
-                "cross-slope is unknown and taken as zero")
+        if s.unknown_contact_pct > 0:
+            say(f"ncopt: {s.unknown_contact_pct:.1f} % of the planned cut has no contact the "
+                "toolpath can show (walls, plunges, passes with no neighbour): planned at the "
+                "cutter's full diameter (see the warnings for the lines)")
     say(f"ncopt: dialect {s.control} ({s.control_source})")
     for note in s.control_notes:
         say(f"ncopt: {s.control} control: {note}")

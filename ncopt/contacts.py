@@ -25,8 +25,8 @@ from .geometry import MeshIndex, mesh_contacts
 from .kinematics import KINEMATICS, blend
 from .memory import release_freed_memory
 from .model import Contacts, Cutter, Toolpath
-from .pathnormals import (ONE_SIDED, ONE_SIDED_TILT_DEG, PathNormals, contacts_from_path,
-                          path_normals, tilt_from_axis)
+from .pathnormals import (NO_CROSS, ONE_SIDED, ONE_SIDED_TILT_DEG, PathNormals,
+                          contacts_from_path, path_normals, tilt_from_axis)
 from .remaining import r_eff_material_mm
 from .sampling import Probe, Refinement, adaptive_samples
 from .tools import center_offset_mm, r_eff_mm
@@ -43,6 +43,10 @@ AXIS_SAMPLE_MM = 0.25
 # deg, vc +1.8 %), which the path alone cannot show: those points are planned this
 # much steeper (0.5: vc +0.4/+0.6 %, 1.9/1.8 % above the optimum; 1.0: +0.2 %, 2.3/2.6 %).
 RUN_END_TILT_DEG = 0.5
+# Without a mesh, a plunge or retract is proved to be in the air where its lower end stays
+# above the highest point the tool cuts, less this (a plunge that ends where the cut
+# begins, at its top, touches the part only there).
+AIR_CLEARANCE_MM = 0.01
 
 # Evenly spaced samples stop at this many per move: a longer move is sampled every
 # length / MAX_SAMPLES_PER_MOVE (10 m at 0.1 mm; memory stays bounded by the moves).
@@ -58,6 +62,11 @@ class Sampled:
     estimate: PathNormals | None = None  # mesh-free only
     gap_mm: np.ndarray | None = None  # (m,) with a mesh: clearance of the cutter, mm (< 0 inside)
     axis: np.ndarray | None = None  # (m, 3) unit tool axis per sample; None: +Z
+    # (m,) bool, mesh-free only: planned at the cutter's largest radius, the contact being
+    # unknown (:func:`unknown_contact`)
+    unknown: np.ndarray | None = None
+    top_mm: float = float("inf")  # mesh-free: the highest point the cuts reach (mm, along up)
+    up: np.ndarray | None = None  # (3,) mesh-free: the direction of top_mm (up_vector)
 
 
 def samples_per_move(tp: Toolpath, sample_mm: float) -> np.ndarray:
@@ -145,14 +154,19 @@ def path_contacts_at_samples(tp: Toolpath, cutter: Cutter, selected: np.ndarray,
     r = np.empty(point.shape)
     normal = np.empty((point.size, 3))
     cutting = np.empty(point.shape, dtype=bool)
+    xyz, _ = sample_points(tp, sample_mm)
     for sel, rows in parts:
-        at_points = contacts_for(tp, cutter, sel, None, sample_mm, 0.0).contacts
+        sampled = contacts_for(tp, cutter, sel, None, sample_mm, 0.0)
+        at_points = sampled.contacts
         p, q, f = point[rows], prev[rows], frac[rows]
         r[rows] = at_points.r_eff_mm[q] * (1.0 - f) + at_points.r_eff_mm[p] * f
         normal[rows] = at_points.normal[q] * (1.0 - f)[:, None] + at_points.normal[p] * f[:, None]
-        cutting[rows] = at_points.cutting[p]
+        # where the contact is unknown (a plunge from above), only the samples at or below
+        # the top of the cut can touch the part
+        above = sampled.unknown[p] & (xyz[rows] @ sampled.up >= sampled.top_mm
+                                      - AIR_CLEARANCE_MM)
+        cutting[rows] = at_points.cutting[p] & ~above
     normal /= np.maximum(np.linalg.norm(normal, axis=1), 1e-12)[:, None]
-    xyz, _ = sample_points(tp, sample_mm)
     cc = xyz + centre_offsets(tp, cutter, sample_axes(tp, sample_mm)) \
         - cutter.corner_radius_mm * normal
     return Contacts(cc_mm=cc, normal=normal, r_eff_mm=r, cutting=cutting)
@@ -166,6 +180,90 @@ def mesh_contacts_at_samples(tp: Toolpath, cutter: Cutter, mesh_index: MeshIndex
     axis = sample_axes(tp, sample_mm)
     return mesh_contacts(xyz + centre_offsets(tp, cutter, axis), mesh_index, cutter, tol_mm,
                          axis=axis).contacts
+
+
+def unknown_contact(tp: Toolpath, selected: np.ndarray, air: np.ndarray,
+                    estimate: PathNormals) -> np.ndarray:
+    """(n,) bool: the points of ``selected`` feed moves whose contact the toolpath cannot
+    tell, without a mesh.
+
+    Two kinds: a plunge, retract or wall descent (:func:`air_moves`: no neighbouring
+    pass to fit a normal to) that is not proved to be in the air, and a cut with no
+    neighbouring pass at all (``NO_CROSS``: its slope across the path is unknown).  A
+    move is proved to be in the air only where it stays above everything the tool cuts
+    (its lower end at most ``AIR_CLEARANCE_MM`` under the highest point of the other
+    cuts: a plunge that ends where the cut begins touches only there): a Fusion parallel
+    pass over a tall part runs down the part's side and along the floor at its foot at
+    the cutting feed, and the ball's side touches the wall all the way.
+    """
+    up = up_vector(tp, selected)
+    h = tp.xyz_mm @ up
+    cuts = selected & ~air
+    low = np.minimum(h, np.concatenate((h[:1], h[:-1])))  # the lower end of each move
+    above = low >= top_of_cut(tp, selected, air, up) - AIR_CLEARANCE_MM
+    return (selected & air & ~above) | (cuts & (estimate.confidence == NO_CROSS))
+
+
+def up_vector(tp: Toolpath, selected: np.ndarray) -> np.ndarray:
+    """(3,) the direction "above the cut" is measured along: the tool axis where it is the
+    same on every ``selected`` point (3 axes, 3+2), else Z (simultaneous 5 axes: the test
+    is then the machine's Z, not a proof along every axis)."""
+    axis = tp.tool_axis
+    if axis is None:
+        return np.array([0.0, 0.0, 1.0])
+    rows = axis[selected]
+    if rows.shape[0] and np.all(np.abs(rows - rows[0]) < 1e-9):
+        return rows[0] / np.linalg.norm(rows[0])
+    return np.array([0.0, 0.0, 1.0])
+
+
+def top_of_cut(tp: Toolpath, selected: np.ndarray, air: np.ndarray, up: np.ndarray) -> float:
+    """The highest tool point (mm, along ``up``) of the ``selected`` moves that are not
+    plunges or retracts (``air``): above it a move is in the air, without a mesh."""
+    return float(np.max(tp.xyz_mm[selected & ~air] @ up, initial=-np.inf))
+
+
+def below_top_mm(tp: Toolpath, points: np.ndarray, top_mm: float,
+                 up: np.ndarray) -> np.ndarray:
+    """(k,) length (mm) of the moves ending at ``points`` that lies below the top of the
+    cut (``top_mm`` along ``up``, less ``AIR_CLEARANCE_MM``): the part of a plunge from
+    above the part that can touch it."""
+    h1 = tp.xyz_mm[points] @ up
+    h0 = tp.xyz_mm[np.maximum(points - 1, 0)] @ up
+    lo, hi = np.minimum(h0, h1), np.maximum(h0, h1)
+    span = hi - lo
+    level = top_mm - AIR_CLEARANCE_MM
+    frac = np.where(span > 1e-12, np.clip((level - lo) / np.where(span > 1e-12, span, 1.0),
+                                          0.0, 1.0), (lo < level).astype(float))
+    return tp.seg_len_mm[points] * frac
+
+
+def _at_largest_radius(contacts: Contacts, unknown: np.ndarray, cutter: Cutter,
+                       axis: np.ndarray | None) -> Contacts:
+    """The contacts with the ``unknown`` points planned where the cutter cuts at its
+    largest radius (a normal across the tool axis: R_eff = R, the lowest S): whatever
+    the real contact there, vc stays at or below its target."""
+    if not unknown.any():
+        return contacts
+    at = np.flatnonzero(unknown)
+    across = _across_axis(None if axis is None else axis[at], at.size)
+    normal, r_eff, cc = contacts.normal.copy(), contacts.r_eff_mm.copy(), contacts.cc_mm.copy()
+    centre = cc[at] + cutter.corner_radius_mm * normal[at]
+    normal[at] = across
+    r_eff[at] = r_eff_mm(cutter, across, None if axis is None else axis[at])
+    cc[at] = centre - cutter.corner_radius_mm * across
+    cutting = contacts.cutting | unknown
+    return Contacts(cc_mm=cc, normal=normal, r_eff_mm=r_eff, cutting=cutting)
+
+
+def _across_axis(axis: np.ndarray | None, m: int) -> np.ndarray:
+    """(m, 3) unit vectors perpendicular to the tool axis (+X for +Z)."""
+    if axis is None:
+        return np.tile([1.0, 0.0, 0.0], (m, 1))
+    u = np.cross([0.0, 1.0, 0.0], axis)
+    small = np.linalg.norm(u, axis=1) < 0.5
+    u[small] = np.cross(axis[small], [1.0, 0.0, 0.0])
+    return u / np.linalg.norm(u, axis=1)[:, None]
 
 
 def air_moves(tp: Toolpath) -> np.ndarray:
@@ -229,14 +327,19 @@ def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index:
         sampled = Sampled(Contacts(cc_mm=p.cc_mm, normal=p.normal, r_eff_mm=p.r_eff_mm,
                                    cutting=p.cutting), got.point, gap_mm=p.gap_mm)
     else:
-        cutting = selected & ~air_moves(tp)
+        air = air_moves(tp)
+        cutting = selected & ~air
         if tp.tool_axis is None:
             centres = tp.xyz_mm + centre_offsets(tp, cutter, None)
             contacts, estimate = contacts_from_path(centres, np.cumsum(tp.seg_len_mm), cutting,
                                                     cutter)
         else:
             contacts, estimate = _path_contacts_5axis(tp, cutter, cutting)
-        sampled = Sampled(contacts, np.arange(tp.n), estimate, axis=tp.tool_axis)
+        unknown = unknown_contact(tp, selected, air, estimate)
+        up = up_vector(tp, selected)
+        sampled = Sampled(_at_largest_radius(contacts, unknown, cutter, tp.tool_axis),
+                          np.arange(tp.n), estimate, axis=tp.tool_axis, unknown=unknown,
+                          top_mm=top_of_cut(tp, selected, air, up), up=up)
     if method.name == "material":
         sampled = replace(sampled, contacts=_with_material(tp, cutter, sampled, method))
     release_freed_memory(force=mesh_index is not None)
@@ -262,6 +365,7 @@ def _end_normals(centres: np.ndarray, cutting: np.ndarray, axis: np.ndarray):
     est = path_normals(centres, path, cutting & ~(last & before), axis=axis)
     inner = np.flatnonzero(last & before)
     est.normal[inner] = est.normal[inner - 1]
+    est.confidence[inner] = est.confidence[inner - 1]  # and as far as that one is trusted
     return est, last | (cutting & ~before)
 
 

@@ -37,6 +37,9 @@ FEED_MATCH = 1e-3  # mm/min: a block at the cutting feed
 # the program: within this share of the cutting feed it is that feed
 FEED_MATCH_G93 = 1e-3
 PLUNGE = 0.99  # a feed move down within 8 deg of the axis plunges: fz as programmed
+# a feed move within 26 deg of the axis (up or down: plunges, retracts, wall descents) does
+# not say what the operation's cutting feed is, however long such moves are together
+VERTICAL = 0.9
 
 
 @dataclass(frozen=True)
@@ -202,8 +205,12 @@ def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, sour
     feed = tp.feed_mm_min[fp]
     d = np.take(tp.xyz_mm, fp, axis=0) - np.take(tp.xyz_mm, np.maximum(fp - 1, 0), axis=0)
     length = np.maximum(row_norms(d), 1e-12)
-    plunge = -d[:, 2] > PLUNGE * length
-    vertical = np.abs(d[:, 2]) > 0.9 * length
+    down = -d[:, 2]
+    if tp.tool_axis is not None:  # 5 axes: along the tool too (a plunge along a tilted axis)
+        along = -np.einsum("ij,ij->i", d, np.take(tp.tool_axis, fp, axis=0))
+        down = np.where(np.abs(along) > np.abs(down), along, down)
+    plunge = down > PLUNGE * length
+    vertical = np.abs(down) > VERTICAL * length
     match = FEED_MATCH if tp.inverse_time is None else np.where(
         tp.inverse_time[fp], FEED_MATCH_G93 * np.abs(feed), FEED_MATCH)
     s_ref, off_feed, f0, s0 = _feed_intent(blocks, feed, tp.spindle_rpm[fp], mine & ~vertical,

@@ -653,7 +653,11 @@ def test_the_winning_profile_drives_the_rewrite(tmp_path, monkeypatch, user_toml
     write_profiles(user_toml, 3000, 3500, "fanuc")
     write_profiles(project / "ncopt.toml", 2000, 2500, "linuxcnc")
     tools = write_profiles(tmp_path / "mine.toml", 2200, 2300, "grbl")
-    base = ["rewrite", flat, "--cutter", "paper-d16", "-o", tmp_path / "out.nc"]
+    # S anywhere along the cut whatever the control: the raster's opening plunge ends below
+    # the top of its cut, so its contact is unknown and planned at the full diameter
+    # (S1393); between passes only, grbl's default, that S would hold the one pass
+    base = ["rewrite", flat, "--cutter", "paper-d16", "-o", tmp_path / "out.nc",
+            "--s-changes", "anywhere"]
     cases = [([], 2000),  # default_machine "shop" of the project file
              (["--machine", "paper-direct-15000"], 2500),  # the project file beats user, shipped
              (["--machine", "paper-direct-15000", "--tools", tools], 2300),  # --tools wins
@@ -661,7 +665,8 @@ def test_the_winning_profile_drives_the_rewrite(tmp_path, monkeypatch, user_toml
     for extra, expected in cases:
         result = invoke([*base, *extra])
         assert result.exit_code == Exit.OK, (extra, result.stderr)
-        assert highest_s(result) == expected, (extra, result.stderr)
+        # the profile's top speed, or a fall from it by less than one --min-rpm-step
+        assert expected - 10 < highest_s(result) <= expected, (extra, result.stderr)
 
 
 def test_rewrite_with_the_shipped_profiles(bowl_opt):

@@ -28,8 +28,8 @@ def raster(inverse: bool, inch: bool = False) -> str:
         for x in xs:
             p = np.array([x, j * 0.8, 0.01 * (x - 10) ** 2 - 0.02 * (j * 0.8 - 2) ** 2])
             words = f"G1 X{p[0] / u:.5f} Y{p[1] / u:.5f} Z{p[2] / u:.5f}"
-            if prev is None:
-                out += [words + f" F{1000 / u:.4f}"]
+            if prev is None:  # a rapid to the first point: no plunge into the saddle
+                out += [words.replace("G1", "G0"), f"F{1000 / u:.4f}"]
                 out += ["G93"] if inverse else []
             elif inverse:
                 out.append(words + f" F{1000.0 / np.linalg.norm(p - prev):.4f}")
