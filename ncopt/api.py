@@ -280,7 +280,8 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
                 # the lag check, and the input's side of the verification's comparison
                 lag = pool.submit(_lag_warnings, prog, tp, idx, work, targets, job)
                 masked_input = pool.submit(_masked_input, prog) if job.verify else None
-                edits = plan_edits(prog, consumers, s_style, f_style, work.scope.editable)
+                edits = plan_edits(prog, consumers, s_style, f_style, work.scope.editable,
+                                   rapid_lines(tp, prog.n_lines))
                 stamp = (stamp_edit(prog, work.plans, 100.0 * job.options.fz_tolerance)
                          if job.stamp else None)
                 out = apply_edits(text, edits + ([stamp] if stamp else ()))
@@ -336,6 +337,10 @@ def _targets(prog: Program, tp: Toolpath, idx: planner.BlockIndex, work: "Work",
             word = np.where(g93[lo:hi], inverse_time_words(p.f_mm_min, length[lo:hi]), word)
         # never above fz; a value a rounding error short of a written one is that one
         planned_f = np.floor(word * scale + 1e-6) / scale
+        # the program's own F, kept by the plan, stays as it is written (F333.33 with F
+        # words of the post's usual F1000. style)
+        own = f_value[lo:hi]
+        planned_f = np.where(np.abs(word - own) <= 1e-9 * np.abs(own), own, planned_f)
         moves = p.blocks.length_mm > 0  # a rotary-only block keeps its F
         f_value[lo:hi] = np.where(np.isfinite(p.f_mm_min) & moves, planned_f, f_value[lo:hi])
     f_value[~(f_value > 0)] = np.nan  # never F0 or below (controls reject it)
@@ -410,11 +415,22 @@ def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_s
     editable = None
     if scope is not None:
         editable = _shift_lines(scope.editable, out_prog.n_lines, in_stamps, out_stamps)
-    again = plan_edits(out_prog, shifted, s_style, f_style, editable)
+    f_kept = _shift_lines(rapid_lines(tp, prog.n_lines), out_prog.n_lines, in_stamps,
+                          out_stamps)
+    again = plan_edits(out_prog, shifted, s_style, f_style, editable, f_kept)
     if again:
         line = int(np.searchsorted(out_prog.line_start, again[0].start, side="right"))
         raise VerificationError("rewriting the result again would change it; nothing written",
                                 prog.path, line)
+
+
+def rapid_lines(tp: Toolpath, n_lines: int) -> np.ndarray:
+    """(n_lines,) bool: the lines that move at the rapid rate (G0): their F words are the
+    program's, never rewritten."""
+    out = np.zeros(n_lines, dtype=bool)
+    rapid = tp.line[(tp.motion == Motion.RAPID) & (tp.line >= 0)]
+    out[rapid] = True
+    return out
 
 
 def _stamp_lines(prog: Program) -> list:

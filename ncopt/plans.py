@@ -252,7 +252,7 @@ def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, sour
     reduced = mine & planned & (off_feed | plunge | ~blocks.cutting)
     feeds = lambda s_low, f_mm: _op_feeds(  # noqa: E731
         s_low, f_mm[:n], feed, s_ref, reduced, blocks.cutting & mine & planned, plunge,
-        machine.max_feed_mm_min)
+        machine.max_feed_mm_min, opts.fz_tolerance)
     f = feeds(emitted.s_low_rpm, f_mm)
     other = _other_mode_time(other_plan, with_tail, n, feeds, opts)
     return OpPlan(k, op.tool, view.cutter, cut, source, (lo, w1), blocks, s_cmd, f, reduced,
@@ -264,15 +264,21 @@ def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, sour
                   other_time_min=other)
 
 
-def _op_feeds(s_low, f_mm, feed, s_ref, reduced, cutting, plunge, max_feed) -> np.ndarray:
+def _op_feeds(s_low, f_mm, feed, s_ref, reduced, cutting, plunge, max_feed,
+              tol: float = 0.0) -> np.ndarray:
     """F per block (mm/min; NaN: the program's own stays): the planner's on the cuts at
     the cutting feed; elsewhere fz as the program has it at most.  A plunge's F is never
     raised (the tip's centre does not cut: a D16 ball plunging at 3 m/min because S rose
     tenfold breaks), nor F in the air (the planner counts on the program's own time
-    there); a ramp or lead-in along the surface follows S."""
+    there); a ramp or lead-in along the surface follows S.  Where that F is within half
+    the fz band ``tol`` of the program's own, the program's F stays as it is written
+    (``F333.33`` is not turned into ``F333.`` for a spindle 0.2 % slower)."""
     ratio = s_low / np.where(s_ref > 0, s_ref, np.nan)
     scaled = feed * np.where(cutting & ~plunge, ratio, np.minimum(ratio, 1.0))
     f = np.where(reduced, np.minimum(scaled, max_feed), f_mm)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        close = reduced & (np.abs(f / feed - 1.0) <= 0.5 * tol) & (feed <= max_feed)
+    f = np.where(close, feed, f)
     return np.where(reduced | cutting, f, np.nan)
 
 
@@ -463,11 +469,21 @@ def _over_target(blocks, emitted, machine, cut, cutter) -> tuple:
 def nominal_cutting_data(tp: Toolpath, points: np.ndarray, cutter: Cutter,
                          path: str) -> CuttingData:
     """vc and fz the program itself runs at its nominal diameter (what the CAM intended):
-    its S (length-weighted median) and its cutting feed over ``points``."""
+    its S (length-weighted median) and its cutting feed over ``points``, plunges,
+    retracts and other near-vertical moves aside (as :func:`plan_operation` reads the
+    cutting feed): passes linked by long plunges at a lower F would otherwise give the
+    plunge feed's fz to every cut.  Only where every move is near-vertical do they count."""
     idx = points[(tp.spindle_rpm[points] > 0) & (tp.feed_mm_min[points] > 0)]
     if idx.size == 0:
         raise PlanningError("the program gives no spindle speed or feed for its cuts; "
                             "give --vc and --fz", path)
+    d = np.take(tp.xyz_mm, idx, axis=0) - np.take(tp.xyz_mm, np.maximum(idx - 1, 0), axis=0)
+    up = np.abs(d[:, 2])
+    if tp.tool_axis is not None:  # 5 axes: along the tool too
+        up = np.maximum(up, np.abs(np.einsum("ij,ij->i", d, np.take(tp.tool_axis, idx, axis=0))))
+    along = up <= VERTICAL * np.maximum(row_norms(d), 1e-12)
+    if along.any():
+        idx = idx[along]
     weight = tp.seg_len_mm[idx]
     s = _weighted_median(tp.spindle_rpm[idx], weight)
     f = _cutting_feed(tp.feed_mm_min[idx], weight, np.ones(idx.size, dtype=bool),

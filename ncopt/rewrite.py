@@ -133,12 +133,16 @@ class Targets:
 
 
 def plan_edits(prog: Program, targets: Targets, s_style: WordStyle,
-               f_style: WordStyle, editable: np.ndarray | None = None) -> Edits:
+               f_style: WordStyle, editable: np.ndarray | None = None,
+               f_kept: np.ndarray | None = None) -> Edits:
     """Edits that make S and F in force equal the targets, word by word.
 
     ``editable`` (n_lines,) bool: the lines whose words may change or get new ones
     (default: every word line).  A target on a line that may not be edited is met by a
     word on the last editable line before it; where there is none, VerificationError.
+    ``f_kept`` (n_lines,) bool: lines whose own F word is the program's and stays (an F
+    on a rapid, ``G0 Z5 F4800``): it holds its value, the feed move after it gets its
+    own F where it needs another, and the line takes no second F.
     """
     if editable is None:
         editable = prog.line_kind == LineKind.WORDS
@@ -147,8 +151,13 @@ def plan_edits(prog: Program, targets: Targets, s_style: WordStyle,
     appended = {}
     for code, values, style in ((S_CODE, targets.s_value, s_style),
                                 (F_CODE, targets.f_value, f_style)):
-        edits += _replace_words(prog, code, targets.line, values, style, editable)
-        appended[code] = _append_words(prog, code, targets.line, values, style, editable)
+        kept = np.zeros(prog.n_lines, dtype=bool)
+        if code == F_CODE and f_kept is not None:
+            kept[prog.word_line[prog.word_letter == code]] = True  # lines with an F word
+            kept &= f_kept
+        edits += _replace_words(prog, code, targets.line, values, style, editable & ~kept)
+        appended[code] = _append_words(prog, code, targets.line, values, style, editable,
+                                       kept)
     return edits + _insertions(prog, appended, s_style)
 
 
@@ -179,7 +188,7 @@ def _replace_words(prog, code, line, values, style, editable) -> Edits:
                  style.format_all(new), n if code == S_CODE else 0, n if code == F_CODE else 0)
 
 
-def _append_words(prog, code, line, values, style, editable):
+def _append_words(prog, code, line, values, style, editable, kept=None):
     """Consumers whose target differs from what is in force get a new word.
 
     In force at a consumer: its own word (rewritten to the target); else the last
@@ -187,8 +196,11 @@ def _append_words(prog, code, line, values, style, editable):
     stands on a line that may not be edited (left alone: its own value holds); else
     the previous consumer's target.  The new word goes on the consumer's line, or where
     that may not be edited, on the last editable line after the previous consumer (and
-    after a word that is left alone).
+    after a word that is left alone).  ``kept``: lines whose own word is left alone though
+    the line may be edited (it takes no second word).
     """
+    if kept is not None and kept.any():
+        editable = editable & ~kept
     c_line, c_val = _consumers(line, values)
     if c_line.size == 0:
         return c_line, ([], np.zeros(0, dtype=np.intp))

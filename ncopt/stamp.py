@@ -90,7 +90,15 @@ def stamped_line(stamps: dict[tuple, Stamp], number: int) -> int:
 def as_stamped(cut: CuttingData) -> CuttingData:
     """The cutting data exactly as the stamp will hold it, so a later run that reads
     the stamp plans with the very same numbers (and changes nothing)."""
-    return CuttingData(float(f"{cut.vc_m_min:.4f}"), float(f"{cut.fz_mm:.6f}"))
+    return CuttingData(float(vc_text(cut.vc_m_min)), float(f"{cut.fz_mm:.6f}"))
+
+
+def vc_text(vc_m_min: float) -> str:
+    """vc as the stamp writes it: 4 decimals where they hold it exactly (``90.0000``),
+    else 10 significant digits.  The program's own vc (pi D S0) rounded to 4 decimals
+    put the full diameter's S a rounding error under S0 (S3999 for S4000 at D6)."""
+    short = f"{vc_m_min:.4f}"
+    return short if float(short) == vc_m_min else f"{vc_m_min:.10g}"
 
 
 def stamp_lines(plans, semicolon: bool, band_pct: float | None = None) -> list[str]:
@@ -100,7 +108,7 @@ def stamp_lines(plans, semicolon: bool, band_pct: float | None = None) -> list[s
     band = f" band={band_pct:g}" if band_pct is not None else ""
     for p in plans:
         body = (f"ncopt {__version__} T{p.tool} lines={p.lines[0]}-{p.lines[1]} "
-                f"vc={p.cutting.vc_m_min:.4f} "
+                f"vc={vc_text(p.cutting.vc_m_min)} "
                 f"fz={p.cutting.fz_mm:.6f} D={p.cutter.diameter_mm:g}mm "
                 f"r={p.cutter.corner_radius_mm:g}mm z={p.cutter.teeth}{band} "
                 f"S0={p.s0_rpm:.10g} F0={p.cutting_feed_mm_min:.10g}mm/min "
