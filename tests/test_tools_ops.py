@@ -152,3 +152,90 @@ def test_the_same_program_with_the_ball_alone_is_planned():
     text = "\n".join(head + dome_passes() + ["G0 Z15.", "M30", "%"]) + "\n"
     (plan,) = rewrite_text(text, JOB).plans
     assert plan.cutter.diameter_mm == 6.0 and plan.cutter.is_ball
+
+
+# ------------------------------------------ 2. a free-text size is a diameter only ... ----
+@pytest.mark.parametrize("text, kind, diameter, unit", [
+    ('1/4 BALL ENDMILL 1" FLUTE LENGTH', BALL, 0.25, "inch"),  # the issue's: read as 1"
+    ('3/4 carbide endmill 3" flute length', FLAT, 0.75, "inch"),  # fusion-haas-inch_1001.nc
+    ('1/2" BALL 2 FLUTE 3/4 LOC', BALL, 0.5, "inch"),
+    ("1/4 BALL END MILL 1/4 SHANK 2.5 OAL", BALL, 0.25, "inch"),
+    ("6MM BALL 8MM SHANK 60MM OVERALL LENGTH", BALL, 6.0, "mm"),
+    ("BALL 6MM, STICKOUT 30MM", BALL, 6.0, "mm"),
+    ("T2 6 BALL ENDMILL", BALL, 6.0, None),  # a leading size: the program's units
+    (" T1 = Ball Nose 3 mm ", BALL, 3.0, "mm"),  # Vectric
+    ("HSS, 2-Flute Endmill, 2mm", FLAT, 2.0, "mm"),  # Estlcam (estlcam_Enclosure.nc)
+    ("Endmill Dia. 0.250", FLAT, 0.25, None),  # keyed (pygcode corpus)
+    ('ID=022  0.2370" Reamer - 6mm slide', OTHER, 0.237, "inch"),  # solidworks-fanuc corpus
+])
+def test_a_free_text_diameter_is_the_size_the_text_calls_one(text, kind, diameter, unit):
+    info = parse_tool_comment(text, 5)
+    assert (info.kind, info.diameter, info.unit) == (kind, diameter, unit)
+
+
+@pytest.mark.parametrize("text", [
+    "6mm BALL 50mm",  # which is the diameter?
+    "BALL ENDMILL 1\" FLUTE LENGTH",  # a length only
+    "BALL SHANK 6MM",
+    "BALL 6MM STICKOUT 30MM",  # the stickout 6 mm or 30 mm?
+])
+def test_a_ball_with_no_size_that_is_its_diameter_is_no_description(text):
+    assert parse_tool_comment(text, 1) is None
+
+
+_LENGTH_WORDS = ["FLUTE LENGTH", "FLUTE", "FL", "LOC", "SHANK", "OAL", "OVERALL LENGTH",
+                 "LONG", "STICKOUT", "REACH", "NECK", "LENGTH OF CUT", "CUTTING LENGTH"]
+
+
+@given(st.sampled_from(["1/8", "3/16", "1/4", "3/8", "1/2", "5/8", "3/4", '1"', "1 1/4"]),
+       st.sampled_from(["BALL ENDMILL", "BALL NOSE", "carbide ball end mill", "FLAT ENDMILL"]),
+       st.floats(0.05, 6.0).map(lambda v: round(v, 3)), st.sampled_from(_LENGTH_WORDS),
+       st.sampled_from(['"', " in", "mm"]))
+def test_a_length_is_never_the_diameter(size, name, length, word, mark):
+    """``<fraction> <cutter> <length><unit> <length word>``: the diameter is the fraction
+    in inch, whatever the length and its unit."""
+    parts = size.rstrip('"').replace("/", " ").split()
+    inch = float(parts[0]) if len(parts) == 1 else (
+        float(parts[-2]) / float(parts[-1]) + (float(parts[0]) if len(parts) == 3 else 0.0))
+    info = parse_tool_comment(f"{size} {name} {length:g}{mark} {word}", 1)
+    assert (info.diameter, info.unit) == (pytest.approx(inch), "inch")
+
+
+def test_the_fusion_haas_inch_program_gives_a_three_quarter_inch_end_mill(corpus_dir):
+    """``(T7 D=0.75 CR=0. - ZMIN=-3.005 - FLAT END MILL)`` and, on line 5, ``(3/4 carbide
+    endmill 3" flute length)``: both a 3/4" flat end mill (the second was read as 3")."""
+    table = tool_table(parse_text(corpus_text(corpus_dir, "more2/fusion-haas-inch_1001.nc")))
+    assert (table[7].kind, table[7].diameter) == (FLAT, 0.75)
+    loose = table[UNNUMBERED]
+    assert (loose.kind, loose.diameter, loose.unit, loose.line) == (FLAT, 0.75, "inch", 5)
+
+
+def test_a_quarter_inch_ball_with_its_flute_length_is_planned_as_a_quarter_inch_ball():
+    """An inch program whose only tool comment is ``(1/4 BALL ENDMILL 1" FLUTE LENGTH)``:
+    it was planned as a 1" (25.4 mm) ball, vc four times the real one; the cutter is
+    6.35 mm, and vc at the programmed S comes from it (pi * D_eff * S, D_eff <= 6.35 mm:
+    at most 200 m/min at S10000)."""
+    def z(x, y):
+        return 0.4 - (x * x + y * y) / 4.0
+    passes = []
+    for i, y in enumerate(np.arange(-0.15, 0.2, 0.025)):
+        xs = np.linspace(-0.4, 0.4, 21)[::(-1 if i % 2 else 1)]
+        passes += [f"X{x:.4f} Y{y:.4f} Z{z(x, y):.4f}" for x in xs]
+    passes[0] += " F40."
+    text = "\n".join(["%", "O1000", '(1/4 BALL ENDMILL 1" FLUTE LENGTH)', "G90 G94 G17", "G20",
+                      "", "(PARALLEL1)", "T1 M6", "S10000 M3", "G0 X-0.5 Y-0.15", "Z0.6",
+                      "G1 Z0.3 F13.", *passes, "G0 Z0.6", "M5", "M30", "%"]) + "\n"
+    (plan,) = rewrite_text(text, JOB).plans
+    assert plan.cutter.diameter_mm == pytest.approx(6.35) and plan.cutter.is_ball
+    assert plan.cutting.vc_m_min <= np.pi * 6.35 * 10000 / 1000 + 1e-6
+
+
+@pytest.mark.parametrize("text, diameter", [
+    ("T12 BALL ENDMILL", None),  # T12 is its number, not T1 and a 2
+    ("T3 6 BALL", 6.0),
+    ('2 FLUTE 1/4" BALL', 0.25),  # a flute count before the size is no length
+    ("1/0 BALL", None),
+])
+def test_leading_sizes_and_numbers(text, diameter):
+    info = parse_tool_comment(text, 1)
+    assert (info.diameter if info else None) == diameter
