@@ -239,3 +239,106 @@ def test_a_quarter_inch_ball_with_its_flute_length_is_planned_as_a_quarter_inch_
 def test_leading_sizes_and_numbers(text, diameter):
     info = parse_tool_comment(text, 1)
     assert (info.diameter if info else None) == diameter
+
+
+# ------------------------------------------- 3. operation names after comments ----
+from ncopt.operations import operation_comments  # noqa: E402
+
+FLAT3 = "(T3 D=6 CR=0 - ZMIN=0 - flat end mill)"
+BALL1 = "(T1 D=6 CR=3 - ZMIN=0 - ball end mill)"
+# Fusion's personal-use notice as more/fusion-linuxcnc-inch_r8s.ngc writes it (lines 6-9)
+NOTICE = ["(WHEN USING FUSION FOR PERSONAL USE, THE FEEDRATE OF RAPID)",
+          "(MOVES IS REDUCED TO MATCH THE FEEDRATE OF CUTTING MOVES,)",
+          "(WHICH CAN INCREASE MACHINING TIME. UNRESTRICTED RAPID MOVES)",
+          "(ARE AVAILABLE WITH A FUSION SUBSCRIPTION.)"]
+
+
+def clearing(tool_call: list[str]) -> list[str]:
+    """Adaptive-like clearing: concentric loops at three constant Z levels 3 mm apart."""
+    out = tool_call + ["G0 X0. Y0.", "Z15."]
+    for z in (6.0, 3.0, 0.0):
+        out.append(f"G1 Z{z:.3f} F300")
+        out += [f"X{r * np.cos(a):.3f} Y{r * np.sin(a):.3f} F1200"
+                for r in np.arange(1.0, 12.0, 1.2) for a in np.linspace(0.0, 2 * np.pi, 24)]
+        out.append("G0 Z15.")
+    return out
+
+
+def parallel(tool_call: list[str]) -> list[str]:
+    return tool_call + ["G0 X-13. Y-3.6", "Z15.", "G1 Z10.5 F333", *dome_passes(), "G0 Z15."]
+
+
+def two_ops(between: list[str], same_tool: bool) -> tuple[str, int]:
+    """ADAPTIVE1 then, after the lines ``between`` (holding ``(PARALLEL2)``), a parallel
+    finish with a ball: with T3 (a flat end mill) first, or the same ball for both.
+    Returns the program and the 0-based line of the clearing's last retract."""
+    tools = [BALL1] if same_tool else [FLAT3, BALL1]
+    first = ["T1 M6" if same_tool else "T3 M6", "S5000 M3"]
+    call = [] if same_tool or "T1 M6" in between else ["T1 M6", "S6000 M3"]
+    lines = ["%", "O1000 (TEST)", *tools, "G90 G94 G17", "G21", "", "(ADAPTIVE1)",
+             *clearing(first)]
+    retract = len(lines) - 1
+    lines += [*between, *parallel(call), "M5", "M30", "%"]
+    return "\n".join(lines) + "\n", retract
+
+
+FORMS = {  # the lines between the clearing's retract and the finish's moves
+    "blank, notice, name": ["", *NOTICE, "(PARALLEL2)"],
+    "notice, name (no blank line)": ["(Aviso: uso personal...)", "(PARALLEL2)"],
+    "blank, name, notice": ["", "(PARALLEL2)", *NOTICE[:2]],
+    "tool call, notice, name": ["", "T1 M6", *NOTICE[:2], "(PARALLEL2)"],
+    "tool line, notice, name": ["", BALL1, "(Personal use notice: rapids at feed.)",
+                                "(PARALLEL2)"],
+}
+CASES = [(form, same) for form in sorted(FORMS) for same in (True, False)
+         if not (same and "T1 M6" in FORMS[form])]  # one tool: no second tool call
+
+
+@pytest.mark.parametrize("form, same_tool", CASES,
+                         ids=[f"{f}, {'one ball' if s else 'flat then ball'}" for f, s in CASES])
+def test_the_finish_after_a_comment_block_is_its_own_operation_and_planned(form, same_tool):
+    """The parallel finish was merged into the roughing before it (one tool: the whole
+    program left as roughing) or shown by a notice's text or its T number.  It starts
+    after the clearing's last retract, by its name line at the latest, and everything
+    before it comes out byte for byte."""
+    text, retract = two_ops(FORMS[form], same_tool)
+    result = rewrite_text(text, JOB)
+    rows = [(o.name, o.planned) for o in result.summary.operations]
+    assert rows == [("ADAPTIVE1", False), ("PARALLEL2", True)]
+    before = text.splitlines()
+    start = int(result.summary.operations[1].lines.split("-")[0]) - 1  # "743-1002": 1-based
+    assert retract < start <= before.index("(PARALLEL2)")
+    after = [line for line in result.text.splitlines() if not line.startswith("(ncopt ")]
+    assert len(after) == len(before) and after[:start] == before[:start]
+    assert after[start:] != before[start:]
+
+
+@pytest.mark.parametrize("lines, expected", [
+    (["G0 Z15.", "", *NOTICE, "(PARALLEL2)", "T1 M6"], {6: "PARALLEL2"}),
+    (["G0 Z15.", "(Aviso: uso personal...)", "(Paralelo2)", "G0 X1."], {2: "Paralelo2"}),
+    (["G0 Z15.", "T1 M6", "(Using high feed G1 F5000. instead of G0.)", "(PARALLEL2)",
+      "S5000 M3"], {3: "PARALLEL2"}),
+    (["G0 Z15.", "", "; PARALLEL2", "T1 D1", "M6"], {2: "PARALLEL2"}),  # Sinumerik (Fusion)
+    (["G0 Z15.", "; ----------------------------------",
+      ";   - JOB: 68: FreePar12_FRA-SP0140-G2R1-N-ES-L25_DL:-0.3_DR:0",
+      "; ----------------------------------"],
+     {2: "FreePar12_FRA-SP0140-G2R1-N-ES-L25_DL:-0.3_DR:0"}),  # hyperMILL's JOB line
+    (["G0 Z15.", "", "( OPERATION=  FINISH1 FLOWLINE SRF_MILL1 )", "G0 Z5."],
+     {2: "FINISH1 FLOWLINE SRF_MILL1"}),  # the LinuxCNC boat demos
+    (["G0 Z15.", "(Z=-1.0)", "(Layer 2)", "G1 X1. F100"], {}),  # data, then a label: no op
+    (["G0 Z15.", "(Tool type: endmill)", "( M6 T2 )", "M3 S10000"], {}),  # FreeCAD: code
+    (["G0 Z15.", "", "(1/4 BALL ENDMILL)", "T1 M6"], {}),  # a tool, not an operation
+])
+def test_operation_names_after_notices_tool_lines_and_in_other_posts_forms(lines, expected):
+    text = "\n".join(lines + ["M30"]) + "\n"
+    assert operation_comments(parse_text(text)) == expected
+
+
+@pytest.mark.parametrize("name, line, expected", [
+    ("more2/fusion-haas-es_1001.nc", 12, "Paralelo2"),  # after a blank, before N25 T1 M6
+    ("more/fusion-linuxcnc-inch_r8s.ngc", 10, "PARALLEL1"),  # after the notice's G53 line
+])
+def test_the_corpus_operations_keep_their_names(corpus_dir, name, line, expected):
+    names = operation_comments(parse_text(corpus_text(corpus_dir, name)))
+    assert names.get(line) == expected
+    assert not any("PERSONAL" in n.upper() for n in names.values())
