@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 from ncopt.api import Job, rewrite_text
 from ncopt.errors import NothingToPlan
 from ncopt.model import Cutter, Machine
+from ncopt.operations import operation_comments
 from ncopt.parse import parse_text
 from ncopt.tooltable import BALL, FLAT, OTHER, UNNUMBERED, parse_tool_comment, tool_table
 
@@ -154,7 +155,7 @@ def test_the_same_program_with_the_ball_alone_is_planned():
     assert plan.cutter.diameter_mm == 6.0 and plan.cutter.is_ball
 
 
-# ------------------------------------------ 2. a free-text size is a diameter only ... ----
+# --------------------------------- 2. a free-text size is a diameter where it says so ----
 @pytest.mark.parametrize("text, kind, diameter, unit", [
     ('1/4 BALL ENDMILL 1" FLUTE LENGTH', BALL, 0.25, "inch"),  # the issue's: read as 1"
     ('3/4 carbide endmill 3" flute length', FLAT, 0.75, "inch"),  # fusion-haas-inch_1001.nc
@@ -242,8 +243,6 @@ def test_leading_sizes_and_numbers(text, diameter):
 
 
 # ------------------------------------------- 3. operation names after comments ----
-from ncopt.operations import operation_comments  # noqa: E402
-
 FLAT3 = "(T3 D=6 CR=0 - ZMIN=0 - flat end mill)"
 BALL1 = "(T1 D=6 CR=3 - ZMIN=0 - ball end mill)"
 # Fusion's personal-use notice as more/fusion-linuxcnc-inch_r8s.ngc writes it (lines 6-9)
