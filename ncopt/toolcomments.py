@@ -30,8 +30,12 @@ free text           ``( T1 = Ball Mill 4 mm )``, ``(T4 BALL D16 R8 z2)``, ``(TOO
 Nothing is guessed: a shape comes from a type word (ball, bull-nose, end mill,
 drill...) or from an explicit corner radius (``CR=``, Carbide Create's field,
 ``.03 RAD``); a bare ``R8`` only confirms a ball or gives a named bull-nose its
-radius (it may be the tool's radius).  A fraction (``5/8``) or ``"`` is inches;
-``mm`` is millimetres; otherwise a size is in the program's units.  Teeth come
+radius (it may be the tool's radius).  A free text's size is its diameter only
+where the text says so: a diameter key (``D=``, ``DIA``), a size no length word
+qualifies (``1/4 BALL ENDMILL 1" FLUTE LENGTH`` is 1/4": flute length, LOC, shank,
+overall length, stickout are never diameters), a bare number leading the cutter's
+type (``6 BALL ENDMILL``); sizes that disagree give none.  A fraction (``5/8``) or
+``"`` is inches; ``mm`` is millimetres; otherwise a size is in the program's units.  Teeth come
 only from words that say so (``3 Flutes``, ``flutes 2``, ``2-Flute``, ``z2``).
 """
 
@@ -99,12 +103,12 @@ def read_comment(text: str) -> Fact | None:
     return _free_text(text)
 
 
-_SIZE_HINTS = ("d", "mm", '"', "''", "/", "in", "\xd8", "tool type")
+_SIZE_HINTS = ("d", "mm", '"', "''", "/", "in", "\xd8", "tool type", "ball", "bull")
 
 
 def may_describe_a_tool(text: str) -> bool:
-    """A quick test every description passes (it names a size, or FreeCAD's tool type):
-    most comments of a long program ("(pass 12)") go no further."""
+    """A quick test every description passes (it names a size or a ball, or FreeCAD's
+    tool type): most comments of a long program ("(pass 12)") go no further."""
     low = text.lower()
     return any(hint in low for hint in _SIZE_HINTS) and (any(c.isdigit() for c in low)
                                                          or "tool type" in low)
@@ -250,9 +254,26 @@ _DIAMETER_KEYED = re.compile(rf"(?:\bD|\bDM|\bDIA(?:M(?:ETER)?)?\.?|\u00d8|\bDUR
                              rf"\s*(?:=|:|-)?\s*({NUM}){_UNIT}", re.I)
 _DIAMETER_BARE_D = re.compile(rf"\bD({NUM}){_UNIT}", re.I)
 _DIAMETER_AFTER = re.compile(rf"(?<![\w./])({NUM}){_UNIT}\s*(?:dia(?:m(?:eter)?)?\b|\u00d8)", re.I)
-_SIZE_MM = re.compile(rf"(?<![\w.])({NUM})\s*mm\b", re.I)
-_SIZE_INCH = re.compile(rf"(?<![\w./])(?:{_FRACTION}|({NUM}))\s*(\"|''|in(?:ch(?:es)?)?\b)", re.I)
-_SIZE_FRACTION = re.compile(rf"(?<![\w./]){_FRACTION}(?![\w/])")
+# a size with its unit (``6mm``, ``1/4"``, ``0.5 in``) or a bare fraction (inch)
+_SIZE = re.compile(rf"(?<![\w./])(?:{_FRACTION}(?![\w/])\s*(\"|''|in(?:ch(?:es)?)?\b)?|"
+                   rf"({NUM})\s*(mm\b|\"|''|in(?:ch(?:es)?)?\b))", re.I)
+# what makes a size a length, a radius or another value, not the diameter: the words
+# after it (``3" flute length``, ``1" LOC``, ``8mm shank``) or before it (``shank 8mm``,
+# ``Len = 15mm``, ``R 8 mm``, ``Z=6 mm``)
+_NOT_DIAMETER_AFTER = re.compile(
+    r"\s*(?:-\s*)?(?:flutes?\b|fl\b|flt\b|cut(?:ting)?\s*-?\s*(?:length|len|lg)\b|"
+    r"length|len\b|lg\b|long\b|loc\b|l\.o\.c\b|shank|shk\b|overall|oal\b|o\.a\.l\b|"
+    r"reach|stick\s*-?\s*out|neck|deep\b|depth|doc\b)", re.I)
+_NOT_DIAMETER_BEFORE = re.compile(
+    r"\b(?:length|len|lg|loc|l|shank|shk|overall|oal|reach|stick\s*-?\s*out|"
+    r"neck|depth|doc|r|rad|radius|cr|corner|stepover|step|stepdown|stock|tol(?:erance)?|"
+    r"[xyzijk]|zmin|zmax)\s*[.=:-]?\s*$", re.I)
+# a bare number before the cutter's type names its diameter in the program's units:
+# ``6 BALL ENDMILL``, ``T3 .5 carbide end mill`` (one word between, not a flute count)
+_LEADING_SIZE = re.compile(
+    rf"^\s*(?:T\s*\d+\b\s*[=:|-]?\s*)?({NUM})\s+"
+    rf"(?:(?!(?:flutes?|fl|flt|teeth|z|x)\b)[a-z]+\s+)?(?:ball|bull|flat|square|end\s*-?\s*mill)",
+    re.I)
 _CORNER_KEYED = re.compile(rf"\b(?:CR|CORNER\s*RAD(?:IUS)?\.?)\s*(?:=|:|-)?\s*({NUM})|"
                            rf"({NUM})\s*RAD\b", re.I)
 _CORNER_BARE = re.compile(rf"\bR\s*=?\s*({NUM})(?![\w.])", re.I)
@@ -260,8 +281,8 @@ _TOOL_WORD = re.compile(r"\b(?:tool|cutter|mill|bit|fr[a\xe4]ser|werkzeug)", re.
 
 
 def _free_text(text: str) -> Fact | None:
-    diameter, unit = _free_diameter(text)
     kind = kind_of_words(text)
+    diameter, unit = _free_diameter(text, kind)
     teeth = teeth_of(text)
     t = _T_NUMBER.search(text)
     number = int(t.group(1) or t.group(2)) if t else None
@@ -278,24 +299,51 @@ def _free_text(text: str) -> Fact | None:
                 _TOOL_WORD.search(text) is not None)
 
 
-def _free_diameter(text: str) -> tuple[float | None, str | None]:
-    """The diameter a free text gives, and its unit (None: the program's)."""
+def _free_diameter(text: str, kind: str | None) -> tuple[float | None, str | None]:
+    """The diameter a free text gives, and its unit (None: the program's).
+
+    Only where the text says so: a diameter key (``D=``, ``DIA``, ``Ø``...), or a
+    size with its unit that is no length, radius or other keyed value (``1/4 BALL
+    ENDMILL 1" FLUTE LENGTH``: 1/4", never 1"), or a bare number leading the
+    cutter's type (``6 BALL ENDMILL``).  Sizes that disagree give none (``6mm BALL
+    50mm``: which one?), except for a cutter ncopt does not plan, whose first size is
+    only reported."""
     for rx in (_DIAMETER_KEYED, _DIAMETER_BARE_D, _DIAMETER_AFTER):
         m = rx.search(text)
         if m:
             return float(m.group(1)), _unit(m.group(2))
-    m = _SIZE_MM.search(text)
+    sizes = [size for size in _sizes(text) if size is not None]
+    m = _LEADING_SIZE.match(text)
     if m:
-        return float(m.group(1)), "mm"
-    m = _SIZE_INCH.search(text)
-    if m:
-        if m.group(3):
-            return float(m.group(1) or 0) + float(m.group(2)) / float(m.group(3)), "inch"
-        return float(m.group(4)), "inch"
-    m = _SIZE_FRACTION.search(text)
-    if m and float(m.group(3)) > 0:
-        return float(m.group(1) or 0) + float(m.group(2)) / float(m.group(3)), "inch"
+        sizes.insert(0, (float(m.group(1)), None))
+    if not sizes:
+        return None, None
+    first = sizes[0]
+    if kind == OTHER or all(_same_size(first, other) for other in sizes[1:]):
+        return next((size for size in sizes if size[1] is not None), first)  # its unit
     return None, None
+
+
+def _sizes(text: str):
+    """(value, unit) of every size in the text that may be its diameter (None for one
+    that is a length, a radius or another keyed value)."""
+    for m in _SIZE.finditer(text):
+        if (_NOT_DIAMETER_AFTER.match(text, m.end())
+                or _NOT_DIAMETER_BEFORE.search(text, 0, m.start())):
+            yield None
+        elif m.group(2):
+            den = float(m.group(3))
+            yield (float(m.group(1) or 0) + float(m.group(2)) / den, "inch") if den else None
+        elif m.group(2) is None and m.group(5):
+            yield float(m.group(5)), _unit(m.group(6))
+
+
+def _same_size(a: tuple, b: tuple) -> bool:
+    """Two (value, unit) sizes name the same length (a unit-less one: the same number)."""
+    if None in (a[1], b[1]):
+        return abs(a[0] - b[0]) <= 1e-6 * max(abs(a[0]), 1.0)
+    mm = [v * (25.4 if u == "inch" else 1.0) for v, u in (a, b)]
+    return abs(mm[0] - mm[1]) <= 1e-3 * max(mm[0], 1e-9)
 
 
 # ------------------------------------------------------------ shape, teeth ----

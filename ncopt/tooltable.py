@@ -15,10 +15,17 @@ text); here the comments of a program become its tools:
   before ``M6 T121``), else to the previous one with no move between them
   (BlenderCAM writes ``T1 M06`` then its comment).  When the program has M6
   words, a tool change is an M6 block (a T word alone preselects the next
-  tool); otherwise a T word.
+  tool); otherwise a T word.  One with moves on both sides belongs to the tool
+  in force at its line, if that tool has not cut yet (Carbide Create writes
+  ``(TOOL/MILL,...)`` after the first rapid moves when it writes no M6).
 * Descriptions bound to no tool change serve a program that never names a
   tool, if they all agree (``UNNUMBERED``); several different ones cannot be
   told apart and serve nothing.
+* A tool a description before a cut calls something else than a ball or a
+  bull-nose (a flat end mill, a V-bit, a drill...) is that: this description
+  wins over every other of the same tool, and among the unbound ones over
+  those that disagree with it: ncopt never plans as a ball a tool the program
+  says is not one.
 
 A tool is usable by ncopt when it is a ball or a bull-nose whose corner radius
 is known.  Flat end mills, drills, chamfer and engraving tools, shapes the
@@ -143,7 +150,7 @@ _NCOPT_STAMP = re.compile(r"\s*ncopt \S+ T-?\d+ (?:lines=\d+-\d+ )?vc=")
 
 def tool_comments(prog: Program) -> list[ToolInfo]:
     """Every tool the program's comments describe, in order, with its T number if known."""
-    return [info for info, _ in _bound_descriptions(prog)]
+    return [info for info, _, _ in _bound_descriptions(prog)]
 
 
 def tool_table(prog: Program) -> dict[int, ToolInfo]:
@@ -152,11 +159,15 @@ def tool_table(prog: Program) -> dict[int, ToolInfo]:
     A description naming its T number wins over one bound to a tool change by
     its place, one on the tool change's own line over one before or after it;
     among equals the first wins.  ``UNNUMBERED`` holds the descriptions bound
-    to no tool change when they all agree.
+    to no tool change when they all agree.  Over all that, a description before a
+    cut that says the tool is no ball or bull-nose (``REFUSED_KINDS``) wins.
     """
     table: dict[int, tuple[ToolInfo, int]] = {}
     loose: list[ToolInfo] = []
-    for info, rank in _bound_descriptions(prog):
+    refused: dict[int, ToolInfo] = {}  # the first "not a ball" before a cut, per tool
+    for info, rank, cut_after in _bound_descriptions(prog):
+        if cut_after and info.kind in REFUSED_KINDS:
+            refused.setdefault(info.number, info)
         if info.number == UNNUMBERED:
             loose.append(info)
         elif info.number not in table or rank < table[info.number][1]:
@@ -165,12 +176,20 @@ def tool_table(prog: Program) -> dict[int, ToolInfo]:
     agreed = _agreed(loose, _inch_program(prog))
     if agreed is not None:
         out[UNNUMBERED] = agreed
+    for number, info in refused.items():
+        if number not in out or out[number].kind not in REFUSED_KINDS:
+            out[number] = info  # the program says it is no ball: never planned as one
     return out
 
 
-def _bound_descriptions(prog: Program) -> list[tuple[ToolInfo, int]]:
-    """(tool, rank) of every description: rank 0 names its T number, 1 is on the tool
-    change's line, 2 next to it, 3 bound to none."""
+# kinds a description gives that no other one of the same tool can overrule
+REFUSED_KINDS = (FLAT, OTHER)
+
+
+def _bound_descriptions(prog: Program) -> list[tuple[ToolInfo, int, bool]]:
+    """(tool, rank, a cut follows) of every description: rank 0 names its T number, 1 is
+    on the tool change's line, 2 next to it, 3 is before the first cut of the tool in
+    force, 4 bound to none."""
     lines = _comment_lines(prog)
     if not lines:
         return []
@@ -182,7 +201,7 @@ def _bound_descriptions(prog: Program) -> list[tuple[ToolInfo, int]]:
             number, rank = events.tool_for(desc.first, desc.last)
         info = _info(desc, number)
         if info is not None:
-            out.append((info, rank))
+            out.append((info, rank, events.cut_after(desc.last)))
     return out
 
 
@@ -285,13 +304,14 @@ def _comment_only(prog: Program) -> np.ndarray:
 
 
 class _Events:
-    """Tool changes and moves of a program, by line."""
+    """Tool changes, moves and cuts of a program, by line."""
 
     def __init__(self, prog: Program) -> None:
         letter, line, value = prog.word_letter, prog.word_line, prog.word_value
         n = prog.n_lines
         self.move = np.zeros(n, dtype=bool)
         self.move[line[np.isin(letter, np.frombuffer(b"XYZABC", dtype=np.uint8))]] = True
+        self.cuts_before = np.cumsum(self.move & _feed_mode(prog))  # cuts on lines 0..i
         t_value = np.full(n, np.nan)
         t = letter == ord("T")
         t_value[line[t]] = value[t]
@@ -310,9 +330,10 @@ class _Events:
 
     def tool_for(self, first: int, last: int) -> tuple[int | None, int]:
         """(T number, rank) of the tool change a description on lines first..last
-        belongs to: rank 1 on its own lines, 2 next to it, (None, 3) none."""
+        belongs to: rank 1 on its own lines, 2 next to it, 3 the tool in force that has
+        not cut since its change, (None, 4) none."""
         if self.change.size == 0:
-            return None, 3
+            return None, 4
         k = int(np.searchsorted(self.change, first))
         if k < self.change.size and self.change[k] <= last:
             return int(self.number[k]), 1
@@ -320,11 +341,33 @@ class _Events:
             return int(self.number[k]), 2
         if k > 0 and not self._moves_between(int(self.change[k - 1]), first):
             return int(self.number[k - 1]), 2
-        return None, 3
+        if k > 0 and self.cuts_before[first] == self.cuts_before[int(self.change[k - 1])]:
+            return int(self.number[k - 1]), 3
+        return None, 4
+
+    def cut_after(self, line: int) -> bool:
+        """Whether a line after ``line`` cuts (a feed move or a canned cycle)."""
+        return bool(self.cuts_before[-1] > self.cuts_before[line])
 
     def _moves_between(self, a: int, b: int) -> bool:
         """Whether a line strictly between a and b moves an axis."""
         return b - a > 1 and self.moves_before[b - 1] - self.moves_before[a] > 0
+
+
+# G codes of the motion group (RS-274 group 1): those that cut, and those that do not
+_CUTTING_G = (1.0, 2.0, 3.0, 81.0, 82.0, 83.0, 84.0, 85.0, 86.0, 87.0, 88.0, 89.0)
+_MOTION_G = (0.0, 80.0) + _CUTTING_G
+
+
+def _feed_mode(prog: Program) -> np.ndarray:
+    """(n_lines,) bool: a move on the line would cut (G1, G2, G3 or a canned cycle in
+    force; a program starts in no cutting mode)."""
+    sel = (prog.word_letter == ord("G")) & np.isin(prog.word_value, _MOTION_G)
+    mode = np.full(prog.n_lines, -1, dtype=np.int64)
+    mode[prog.word_line[sel]] = np.isin(prog.word_value[sel], _CUTTING_G)  # the line's last
+    idx = np.where(mode >= 0, np.arange(prog.n_lines), -1)
+    np.maximum.accumulate(idx, out=idx)
+    return (idx >= 0) & (mode[np.maximum(idx, 0)] == 1)
 
 
 def _inch_program(prog: Program) -> bool:
