@@ -347,6 +347,9 @@ def _check_semantics(prog: Program, lines: _LineTable, executed: np.ndarray) -> 
         _fail(prog, bad[0], "R word with no G code that uses it; remove the R word")
     arc = np.isin(motion, [20, 30]) & executed & (axes | lines.has_g({20, 30}))
     no_centre = ~(lines.present("I") | lines.present("J") | lines.present("K") | lines.present("R"))
+    # an arc whose line holds what ncopt does not read (Sinumerik CR=R1*2, AR=90, I=AC(5))
+    # may give its centre there: it is no move ncopt reads, and the position is lost after it
+    no_centre &= prog.line_kind != LineKind.OPAQUE
     if (arc & no_centre).any():
         _fail(prog, np.flatnonzero(arc & no_centre)[0],
               "arc with none of I, J, K or R; give the centre or the radius")

@@ -1,0 +1,164 @@
+"""Forms of real programs the reading stage refused or misread (the issue "Right where it
+plans"): Sinumerik ``CR=`` radius arcs, Fanuc 30i macro variables, marks that LinuxCNC and
+grbl programs share with Fanuc's, Sinumerik's ``G700`` inch, LinuxCNC's compact
+``m66e0l0``, and the lines before the opening ``%`` and after the closing one.
+
+Each test quotes the form the real program uses; LinuxCNC's own interpreter (rs274) is the
+judge where it reads the form too.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from typer.testing import CliRunner
+
+from ncopt.api import Job, rewrite_text
+from ncopt.cli import Exit, app
+from ncopt.dialect import FANUC, LINUXCNC, SINUMERIK, detect
+from ncopt.errors import NcoptError, NcParseError
+from ncopt.inspect import inspect_text
+from ncopt.interp import interpret
+from ncopt.model import Cutter, LineKind, Machine, Motion
+from ncopt.parse import parse_text
+from ncopt.rewrite import masked
+
+from judge import RS274, canon
+from programs import dome
+
+ROOT = Path(__file__).resolve().parents[1]
+CORPUS = (ROOT / "../shared/corpus").resolve()
+CR_FILE = CORPUS / "more2" / "sinumerik-cr-arcs_test.mpf"
+JOB = Job(machine=Machine(accel_rad_s2=227.0, max_rpm=15000.0), cutter=Cutter(6.0, 2))
+REWRITE = ["--diameter", "6", "--accel", "227", "--max-rpm", "15000"]
+needs_corpus = pytest.mark.skipif(not CR_FILE.is_file(), reason="no corpus")
+needs_rs274 = pytest.mark.skipif(RS274 is None, reason="rs274 (linuxcnc-uspace) not installed")
+
+
+def invoke(args):
+    runner = CliRunner(env={"NO_COLOR": "1", "TERM": "dumb", "COLUMNS": "100"})
+    result = runner.invoke(app, [str(a) for a in args], catch_exceptions=False)
+    assert "Traceback" not in result.stderr
+    return result
+
+
+def words(prog, line: int | None = None) -> list[tuple[str, str, float]]:
+    """(text, letter, value) of every word (of one 0-based line)."""
+    sel = np.arange(prog.n_words) if line is None else np.flatnonzero(prog.word_line == line)
+    return [(prog.text[prog.word_start[k]:prog.word_end[k]], chr(prog.word_letter[k]),
+             float(prog.word_value[k])) for k in sel.tolist()]
+
+
+def arc_feeds(text: str) -> list[list[float]]:
+    """rs274's ARC_FEED calls: end (2), centre (2), turns, axis end, ... per arc."""
+    return [[float(v) for v in args.split(",")] for name, args in canon(text).motion
+            if name == "ARC_FEED"]
+
+
+# ------------------------------------------------------------ Sinumerik CR= arcs ----
+@needs_corpus
+@pytest.mark.parametrize("dialect", [None, SINUMERIK])
+def test_the_real_cr_arc_reads_as_its_radius(dialect):
+    """``N000009 G03 X-22.313 Y19.749 CR=4. F250.`` (line 9, where ncopt said "arc with
+    none of I, J, K or R"): CR=4. is the arc's radius, its F250. a word ncopt may rewrite."""
+    prog = parse_text(CR_FILE.read_bytes().decode("latin-1"), str(CR_FILE), dialect=dialect)
+    assert words(prog, 8) == [("N000009", "N", 9.0), ("G03", "G", 3.0), ("X-22.313", "X", -22.313),
+                              ("Y19.749", "Y", 19.749), ("CR=4.", "R", 4.0), ("F250.", "F", 250.0)]
+    assert prog.line_kind[8] == LineKind.WORDS
+    assert "C" not in {w[1] for w in words(prog)}  # no CR became a C (rotary axis) word
+
+
+@needs_corpus
+@needs_rs274
+def test_the_real_cr_arcs_are_the_arcs_rs274_draws_from_the_same_radius():
+    """The program's first operation (lines 1-24: ``G03 ... CR=4.`` and ``G02 X-31.999
+    Y-1.349 CR=4.``) against rs274 reading the same blocks with LinuxCNC's R word, whose
+    radius and sign mean what Siemens gives CR= ("CR=+...: angle less than or equal to 180
+    deg, CR=-...: more than 180 deg"): every point ncopt follows lies on rs274's circle,
+    the arc turns rs274's way and ends where it ends."""
+    head = "\n".join(CR_FILE.read_text(encoding="latin-1").splitlines()[:24]) + "\n"
+    tp = interpret(parse_text(head, str(CR_FILE)))
+    arcs = arc_feeds(head.replace("CR=", "R") + "M2\n")
+    lines = np.unique(tp.line[np.isin(tp.motion, [Motion.ARC_CW, Motion.ARC_CCW])])
+    assert lines.tolist() == [8, 17] and len(arcs) == 2
+    for line, arc in zip(lines.tolist(), arcs):
+        rows = np.flatnonzero(tp.line == line)
+        pts = tp.xyz_mm[np.concatenate(([rows[0] - 1], rows))][:, :2]  # from the start point
+        centre = np.array(arc[2:4])
+        assert np.allclose(np.hypot(*(pts - centre).T), 4.0, atol=1e-4)  # CR=4.
+        assert np.allclose(pts[-1], arc[0:2], atol=1e-9)
+        u, v = (pts[:-1] - centre).T, (pts[1:] - centre).T
+        turn = np.sign(u[0] * v[1] - u[1] * v[0])  # +1 counter-clockwise
+        assert np.all(turn == arc[4])  # rs274: 1 for G3, -1 for G2
+        assert int(tp.motion[rows[0]]) == (Motion.ARC_CCW if arc[4] > 0 else Motion.ARC_CW)
+
+
+@needs_rs274
+@pytest.mark.parametrize("cr, rs", [("34.913", "34.913"), ("-34.913", "-34.913"),
+                                    ("+34.913", "34.913")])
+def test_the_sign_of_cr_picks_the_short_or_the_long_arc(cr, rs):
+    """Siemens' own example (Programming Manual, Fundamentals, 12/2019, p. 192):
+    ``N10 G0 X67.5 Y80.511`` / ``N20 G3 X17.203 Y38.029 CR=34.913 F500``; with CR=- the
+    same end point is reached the long way round (more than 180 deg)."""
+    text = f"G17 G90 G71\nG0 X0 Y0 Z0\nN10 G0 X67.5 Y80.511\nN20 G3 X17.203 Y38.029 CR={cr} F500\n"
+    tp = interpret(parse_text(text, dialect=SINUMERIK))
+    rows = np.flatnonzero(tp.line == 3)
+    assert rows.size > 10  # followed point by point
+    sweep = float(tp.seg_len_mm[rows].sum()) / 34.913
+    assert (sweep > math.pi) == cr.startswith("-")
+    arc = arc_feeds(f"G17 G90 G21\nG0 X67.5 Y80.511\nG3 X17.203 Y38.029 R{rs} F500\nM2\n")[0]
+    pts = tp.xyz_mm[rows][:, :2]
+    assert np.allclose(np.hypot(*(pts - np.array(arc[2:4])).T), 34.913, atol=1e-3)
+
+
+numbers = st.decimals(min_value=-999, max_value=999, places=3, allow_nan=False).map(
+    lambda d: format(d, "f")).filter(lambda s: s not in ("0.000", "-0.000"))
+
+
+@given(r=numbers, before=st.sampled_from(["", " ", "\t "]), after=st.sampled_from(["", " "]),
+       cr=st.sampled_from(["CR", "cr", "Cr"]))
+def test_a_cr_word_reads_the_same_on_the_fast_path_and_through_lark(r, before, after, cr):
+    """``G02 X-31.999 Y-1.349 CR=4. F250.`` with any radius and blanks around '=': the
+    same words, spans and values on both paths, CR= read as R with the number written."""
+    text = f"N18 G02 X-31.999 Y-1.349 {cr}{before}={after}{r} F250.\n"
+    for dialect in (None, SINUMERIK):
+        fast, lark = (parse_text(text, dialect=dialect, use_fast_path=f) for f in (True, False))
+        assert words(fast) == words(lark)
+        assert words(fast)[4] == (f"{cr}{before}={after}{r}", "R", float(r))
+
+
+def test_a_computed_radius_is_left_as_programmed():
+    """``CR=R1`` (an R parameter): ncopt does not evaluate it; the arc is not refused, the
+    line is not interpreted, and the moves after it wait for a known position."""
+    text = "G17 G90 G71\nR1=4\nG0 X-26.313 Y23.749 Z0\nG03 X-22.313 Y19.749 CR=R1 F250.\n" \
+           "G01 X22.313 F250.\nM30\n"
+    tp = interpret(parse_text(text, "cr.mpf"))
+    assert any(w.startswith("cr.mpf:4: 'CR' is not interpreted") for w in tp.warnings)
+    assert not tp.known[tp.line == 4].any()
+
+
+def test_fanuc_refuses_cr_and_names_the_dialect_that_reads_it():
+    with pytest.raises(NcParseError) as err:
+        parse_text("G03 X-22.313 Y19.749 CR=4. F250.\n", "p.nc", dialect=FANUC)
+    assert (err.value.line, err.value.column) == (1, 23)  # Fanuc reads a C word, then 'R'
+    assert err.value.message.startswith("`CR=4.` is a Sinumerik arc radius (CR=)")
+    assert "--dialect sinumerik" in err.value.message
+
+
+@needs_corpus
+def test_inspect_and_rewrite_of_the_real_program_get_past_its_arcs(tmp_path):
+    for extra in ([], ["--dialect", "sinumerik"]):
+        shown = invoke(["inspect", CR_FILE, *extra])
+        assert shown.exit_code == Exit.OK, shown.stderr
+        assert "arcs 18)" in shown.stdout  # the 18 lines with CR= under G2/G3
+        done = invoke(["rewrite", CR_FILE, *REWRITE, *extra, "-o", tmp_path / "out.mpf"])
+        assert "arc with none" not in done.stderr
+        # a 2D contour and a drilling cycle: nothing ncopt plans, as it says
+        assert done.exit_code == Exit.PLANNING, done.stderr
+        assert "one Z level" in done.stderr
