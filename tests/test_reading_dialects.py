@@ -162,3 +162,33 @@ def test_inspect_and_rewrite_of_the_real_program_get_past_its_arcs(tmp_path):
         # a 2D contour and a drilling cycle: nothing ncopt plans, as it says
         assert done.exit_code == Exit.PLANNING, done.stderr
         assert "one Z level" in done.stderr
+
+
+# ------------------------------------------------------- Fanuc macro variables ----
+@pytest.mark.parametrize("number", [1, 33, 100, 199, 500, 999, 5601, 98000, 98499, 100000,
+                                    100001, 199999, 900000, 999999])
+def test_the_variables_of_a_fanuc_30i_are_read(number):
+    """Local #1-#33, common #100-#199, #500-#999 and the 30i's #98000-#98499 and
+    #100000-#199999, and #900000 and up: assigned in the program, their values are known."""
+    text = f"G21 G90\nG0 X0. Y0. Z5.\n#{number}=12.5\nG0 X#{number} Y0. Z5.\n"
+    tp = interpret(parse_text(text, "v.nc", dialect=FANUC))
+    assert tp.known[-1] and tp.xyz_mm[-1].tolist() == [12.5, 0.0, 5.0]
+
+
+@pytest.mark.parametrize("value", ["#0", "#5021", "#100101"])
+def test_a_variable_the_program_does_not_set_is_unknown_not_refused(value):
+    """``#1=#0`` (clears #1: Fanuc's null variable), ``#1=#5021`` (a machine position):
+    values only the control has; the moves that use them are not planned."""
+    text = f"G21 G90\nG0 X0. Y0. Z5.\n#1={value}\nG1 X#1 F300.\nG1 Y1.\n"
+    tp = interpret(parse_text(text, "v.nc"))
+    assert not tp.known[tp.line == 3].any() and not tp.known[tp.line == 4].any()
+
+
+@pytest.mark.parametrize("number", [-2, 90000, 99999, 98500, 200000, 1000000])
+def test_a_number_no_control_has_is_refused_at_its_line(number):
+    """LinuxCNC's own bad program ``#2=99999`` / ``G0 X EXISTS[###2]`` ("Parameter number
+    out of range"): no Fanuc has #99999 either."""
+    with pytest.raises(NcoptError) as err:
+        interpret(parse_text(f"G21\n#1={number}\n#[#1]=5.\n", "v.ngc"))
+    assert (err.value.line, err.value.column) == (3, 1)
+    assert f"variable number {number} is out of the range of every control" in err.value.message
