@@ -192,3 +192,39 @@ def test_a_number_no_control_has_is_refused_at_its_line(number):
         interpret(parse_text(f"G21\n#1={number}\n#[#1]=5.\n", "v.ngc"))
     assert (err.value.line, err.value.column) == (3, 1)
     assert f"variable number {number} is out of the range of every control" in err.value.message
+
+
+# -------------------------------------------------- marks LinuxCNC and grbl share ----
+def grbl_dome() -> str:
+    """A Fusion grbl post's form: ``G28 G91 Z0`` / ``G90`` before the tool, whole
+    numbers without a decimal point (``G0 X-10 Y-10 Z15``)."""
+    lines = dome().decode().splitlines()
+    return "\n".join(["(grbl dome)", "G90 G94", "G17", "G21", "G28 G91 Z0", "G90",
+                      *lines[1:]]) + "\n"
+
+
+def linuxcnc_dome() -> str:
+    """LinuxCNC's form: ``G43 H1`` after the tool change, ``X10``-style values, ``M2``."""
+    lines = dome().decode().splitlines()
+    return "\n".join([*lines[:3], "G43 H1", *lines[3:-1], "M2"]) + "\n"
+
+
+@pytest.mark.parametrize("make", [grbl_dome, linuxcnc_dome])
+def test_shared_marks_alone_do_not_make_a_program_fanuc(make, tmp_path):
+    """``G28 G91 Z0`` (grbl) and ``G43 H1`` (LinuxCNC) made these programs Fanuc, which
+    then refused ``Z15`` for its missing decimal point; their controls read it as 15 mm."""
+    text = make()
+    assert detect(text).name != FANUC
+    assert not any("decimal point" in w for w in inspect_text(text, "p.nc").warnings)
+    path = tmp_path / "p.nc"
+    path.write_text(text)
+    done = invoke(["rewrite", path, *REWRITE, "-o", tmp_path / "out.nc"])
+    assert done.exit_code == Exit.OK, done.stderr
+
+
+def test_a_mark_of_fanuc_s_own_still_makes_it_fanuc():
+    """``M29 S500`` before a tapping cycle (the SolidWorks Fanuc post of the corpus):
+    LinuxCNC refuses it ("Unknown m code used: M29"), grbl too."""
+    text = grbl_dome().replace("G28 G91 Z0", "G28 G91 Z0\nM29 S500")
+    assert detect(text).name == FANUC
+    assert detect("O1000\nG43 H1 Z50.\nG28 G91 Z0.\n").name == FANUC  # a program number
