@@ -146,6 +146,33 @@ def detect(text: str) -> Detected:
     return Detected(best, best_marks)
 
 
+# ------------------------------------------------------------- units by G code ----
+# Sinumerik's G700 and G710 select inch and metric for the lengths and the feed F alike
+# (Siemens: "G700: inch dimensional notation, also for feed F"): what G20 and G21 mean
+# elsewhere, and the interpreter reads them so.  G70 and G71 select the unit of the lengths
+# only: F stays in the machine's basic system, set in its machine data, which a program
+# does not say; they keep their codes, and the moves under G70 are left as programmed (G70
+# is a finishing cycle on a Fanuc lathe and in LinuxCNC, inch in Heidenhain ISO).  No other
+# control has G700 or G710: the generic grammar reads them as Sinumerik does.
+_SINUMERIK_UNITS = {700.0: 20.0, 710.0: 21.0}
+UNIT_CODES = {SINUMERIK: _SINUMERIK_UNITS, GENERIC: _SINUMERIK_UNITS}
+
+
+def read_unit_codes(letter: np.ndarray, value: np.ndarray, dialect: str) -> None:
+    """Give the G words that select units the codes the interpreter reads (in place).
+
+    ``letter`` (n_words,) uint8 letter codes, ``value`` (n_words,) float64 values of a
+    program read in the grammar ``dialect``: G700 becomes 20, G710 21 (see
+    :data:`UNIT_CODES`).  The words' text and spans are not changed.
+    """
+    codes = UNIT_CODES.get(dialect)
+    if not codes:
+        return
+    g = letter == ord("G")
+    for code, meaning in codes.items():
+        value[g & (value == code)] = meaning
+
+
 # ------------------------------------------------------ Fanuc decimal point ----
 CALCULATOR, IS_B, IS_C = "calculator", "is-b", "is-c"
 DECIMAL_POINT_CONVENTIONS = (CALCULATOR, IS_B, IS_C)

@@ -27,7 +27,7 @@ import numpy as np
 from lark import Lark, Token, Tree
 from lark.exceptions import UnexpectedInput
 
-from .dialect import DIALECTS, FANUC, GENERIC, GRBL
+from .dialect import DIALECTS, FANUC, GENERIC, GRBL, read_unit_codes
 from .errors import NcParseError, UsageError
 from .memory import release_freed_memory, working_memory
 from .model import VECTOR_WORD_CODES, LineKind, Program
@@ -199,6 +199,7 @@ def parse_text(text: str, path: str = "<input>", *, dialect: str | None = None,
         if progress is not None:
             progress(i)
     prog = _assemble(path, text, line_start, kind, has_expr, words, slow_words, opaque, exprs)
+    read_unit_codes(prog.word_letter, prog.word_value, name)  # Sinumerik G700: inch, as G20
     release_freed_memory()  # the byte-level temporaries of 1M lines: hundreds of MB
     return prog
 

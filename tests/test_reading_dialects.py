@@ -228,3 +228,39 @@ def test_a_mark_of_fanuc_s_own_still_makes_it_fanuc():
     text = grbl_dome().replace("G28 G91 Z0", "G28 G91 Z0\nM29 S500")
     assert detect(text).name == FANUC
     assert detect("O1000\nG43 H1 Z50.\nG28 G91 Z0.\n").name == FANUC  # a program number
+
+
+# ---------------------------------------------------------- Sinumerik G700 inch ----
+def inch_dome(units: str) -> str:
+    """The dome in inch (4 decimals), F in inch/min, ``units`` on the first block."""
+    out = []
+    for line in dome().decode().splitlines():
+        line = re.sub(r"([XYZ])(-?[\d.]+)", lambda m: f"{m[1]}{float(m[2]) / 25.4:.4f}", line)
+        out.append(line.replace("G21", units).replace("F800", "F31.5"))
+    return "\n".join(out) + "\n"
+
+
+def test_g700_is_inch_for_lengths_and_feed_as_g20_is():
+    """Sinumerik ``G700``: "inch dimensional notation, also for feed F".  The program with
+    G700 is planned exactly as the one with G20: the same words written."""
+    g700, g20 = inch_dome("G700"), inch_dome("G20")
+    assert inspect_text(g700, "p.mpf", dialect=SINUMERIK).units == "inch"
+    a = rewrite_text(g700, JOB, "p.mpf")
+    b = rewrite_text(g20, JOB, "p.mpf")
+    assert a.text.replace("G700", "G20") == b.text
+    assert a.summary.cutting_blocks > 50
+
+
+def test_g70_leaves_the_moves_as_programmed(tmp_path):
+    """Sinumerik ``G70`` selects inch for the lengths only: F stays in the machine's basic
+    system (its machine data), which the program does not say; ncopt does not guess it."""
+    path = tmp_path / "p.mpf"
+    path.write_text(inch_dome("G70"))
+    done = invoke(["rewrite", path, *REWRITE, "-o", tmp_path / "out.mpf"])
+    assert done.exit_code == Exit.PLANNING and "G70" in done.stderr
+    assert not (tmp_path / "out.mpf").exists()
+
+
+def test_g700_is_no_unit_under_fanuc():
+    prog = parse_text("G700\nG1 X1. F10.\n", dialect=FANUC)
+    assert words(prog, 0) == [("G700", "G", 700.0)]
