@@ -264,3 +264,19 @@ def test_g70_leaves_the_moves_as_programmed(tmp_path):
 def test_g700_is_no_unit_under_fanuc():
     prog = parse_text("G700\nG1 X1. F10.\n", dialect=FANUC)
     assert words(prog, 0) == [("G700", "G", 700.0)]
+
+
+# -------------------------------------------------------- LinuxCNC's m66e0l0 ----
+@needs_rs274
+def test_compact_m66_reads_as_rs274_reads_it():
+    """``m66e0l0``: M66 E0 L0 (wait on analog input 0, no wait), not a number with an
+    exponent; rs274 runs it.  ``S1e3`` is still refused: no code of its block takes E."""
+    text = "G21\nm66e0l0\nG0 X1\nM2\n"
+    prog = parse_text(text, dialect=LINUXCNC)
+    assert words(prog, 1) == [("m66", "M", 66.0), ("e0", "E", 0.0), ("l0", "L", 0.0)]
+    interpret(prog)
+    canon(text)  # raises if rs274 refuses it
+    with pytest.raises(NcParseError, match="`S1e3` is a number with an exponent"):
+        interpret(parse_text("G21\nS1e3 M3\nM2\n"))
+    with pytest.raises(RuntimeError, match="E word with no G70, G76, M66, M67 or M68"):
+        canon("G21\nS1e3 M3\nM2\n")
