@@ -24,6 +24,7 @@ from .expr import Params, Unknown
 from .feedmode import G93, G95, tip_feed_mm_min
 from .model import LineKind, LineState, Program, Toolpath
 from .orientation import Orientation, read_orientation, with_tool_axis
+from .parse import unread_lines_warning
 from .planes import after_keyword
 from .refuse import MIN_ARC_RADIUS_MM, check_arc_centres, check_signs, check_words
 
@@ -312,6 +313,9 @@ def _executed_lines(prog: Program, lines: _LineTable, warnings: list) -> np.ndar
     if ends.size:
         executed[ends[0] + 1:] = False
     executed &= prog.line_kind != LineKind.TRAILER
+    unread = unread_lines_warning(prog)
+    if unread:
+        warnings.append(unread)
     return executed
 
 

@@ -280,3 +280,73 @@ def test_compact_m66_reads_as_rs274_reads_it():
         interpret(parse_text("G21\nS1e3 M3\nM2\n"))
     with pytest.raises(RuntimeError, match="E word with no G70, G76, M66, M67 or M68"):
         canon("G21\nS1e3 M3\nM2\n")
+
+
+# -------------------------------------------------- lines around the '%' marks ----
+def fanuc_dome() -> str:
+    """The dome as a Fanuc post writes it: ``%``, ``O1001``, values with a point, ``%``."""
+    body = re.sub(r"([XYZF]-?\d+)(?![\d.])", r"\1.", dome().decode())
+    return f"%\nO1001\n{body}%\n"
+
+
+headers = st.lists(st.sampled_from(["", "(PROGRAM FROM FUSION)", "  (T1 D=6. CR=3.)", "\t",
+                                    "(A)(B)", "; header"]), min_size=1, max_size=4)
+
+
+@given(header=headers)
+def test_a_header_before_the_opening_percent_is_read_and_the_program_after_it(header):
+    """Comment and blank lines before the first ``%`` (``(PROGRAM FROM FUSION)`` / ``%`` /
+    ``O1001``): the program after it reads as it does without them (it read nothing)."""
+    plain = fanuc_dome()
+    head = "\n".join(header) + "\n"
+    prog, ref = parse_text(head + plain), parse_text(plain)
+    shift = len(head)
+    assert words(prog)[-len(words(ref)):] == words(ref)
+    assert np.array_equal(prog.word_start[-ref.n_words:], ref.word_start + shift)
+    kinds = prog.line_kind[len(header):]
+    assert np.array_equal(kinds, ref.line_kind)
+    assert not np.any(prog.line_kind == LineKind.TRAILER)
+
+
+@pytest.mark.parametrize("header", ["(PROGRAM FROM FUSION)\n", "\n", "\n\n(POST 4.2)\n\n"])
+def test_rewrite_reads_past_a_header_and_keeps_every_byte_of_it(header, tmp_path):
+    """``(PROGRAM FROM FUSION)`` before the ``%`` made ncopt read 0 blocks ("no feed
+    moves"); a blank line there ended in exit 6 ("changed more than S and F")."""
+    text = header + fanuc_dome()
+    src, out = tmp_path / "p.nc", tmp_path / "out.nc"
+    src.write_text(text)
+    done = invoke(["rewrite", src, *REWRITE, "-o", out])
+    assert done.exit_code == Exit.OK, done.stderr
+    written = out.read_text()
+    stamp = [line for line in written.splitlines(keepends=True) if line.startswith("(ncopt ")]
+    assert len(stamp) == 1
+    kept = written.replace(stamp[0], "", 1)
+    assert kept.startswith(header + "%\nO1001\n")  # the header byte for byte
+    assert masked(parse_text(kept)) == masked(parse_text(text))  # only S and F changed
+    assert kept != text
+
+
+def test_lines_after_the_closing_percent_get_a_located_warning(tmp_path):
+    text = fanuc_dome() + "(after the end)\nG1 X5\n"
+    n = text.count("\n")
+    path = tmp_path / "p.nc"
+    path.write_text(text)
+    where = f"{path}:{n - 1}-{n}: after the closing '%' (line {n - 2})"
+    assert any(w.startswith(where) for w in inspect_text(text, str(path)).warnings)
+    done = invoke(["rewrite", path, *REWRITE, "-o", tmp_path / "out.nc"])
+    assert done.exit_code == Exit.OK and f"warning: {where}" in done.stderr
+    assert (tmp_path / "out.nc").read_text().endswith("%\n(after the end)\nG1 X5\n")
+    assert not any("closing" in w for w in inspect_text(fanuc_dome() + "\n\n", "q.nc").warnings)
+
+
+@needs_rs274
+def test_linuxcnc_refuses_a_comment_before_the_percent_as_rs274_does():
+    text = "(HEADER)\n%\nG0 X1\nM2\n%\n"
+    with pytest.raises(NcParseError) as err:
+        parse_text(text, "p.ngc", dialect=LINUXCNC)
+    assert (err.value.line, err.value.column) == (2, 1)
+    assert "Bad character '%' used" in err.value.message
+    with pytest.raises(RuntimeError, match="Bad character '%' used"):
+        canon(text)
+    assert parse_text("\n%\nG0 X1\nM2\n%\n", dialect=LINUXCNC).n_words == 3  # blank: read
+    canon("\n%\nG0 X1\nM2\n%\n")
