@@ -168,9 +168,11 @@ def read_unit_codes(letter: np.ndarray, value: np.ndarray, dialect: str) -> None
     codes = UNIT_CODES.get(dialect)
     if not codes:
         return
-    g = letter == ord("G")
+    g = np.flatnonzero(letter == ord("G"))  # a few G words among many: work on those
+    g_value = value[g]
     for code, meaning in codes.items():
-        value[g & (value == code)] = meaning
+        g_value[g_value == code] = meaning
+    value[g] = g_value
 
 
 # ------------------------------------------------------ Fanuc decimal point ----
