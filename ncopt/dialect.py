@@ -28,11 +28,18 @@ SINUMERIK, FANUC, LINUXCNC, GRBL, HEIDENHAIN, GENERIC = (
 DIALECTS = (SINUMERIK, FANUC, HEIDENHAIN, LINUXCNC, GRBL, GENERIC)
 
 class Mark(NamedTuple):
-    """A construct that tells a control: ``only`` when no other dialect reads it."""
+    """A construct that tells a control: ``only`` when no other dialect reads it.
+
+    ``alone``: whether the mark may choose its dialect without another of its marks.
+    Fanuc's ``G43 H``, ``G28 G91``, ``#1=`` and ``M98 P`` are in LinuxCNC's and grbl's
+    programs as well, which read ``X10`` as 10 mm where the Fanuc dialect refuses it
+    for its missing decimal point: they name the control only beside a mark that tells it.
+    """
 
     name: str
     pattern: str
     only: bool
+    alone: bool = True
 
 
 _MARKS = {
@@ -49,14 +56,21 @@ _MARKS = {
         Mark("T1 D1 block", r"^\s*(?:N\d+\s+)?T\d+\s+D\d+\s*$", False),
     ],
     FANUC: [
-        Mark("O1234 program number", r"^\s*O\d{3,5}\b", False),  # LinuxCNC reads them too
-        Mark("G43 H length offset", r"\bG43\s*H\d+|\bG43\s*Z[-\d.]+\s*H\d+", False),
-        Mark("G28 G91 return", r"\bG28\s*G91|\bG91\s*G28", False),
+        # a program number line: grbl refuses an O word, LinuxCNC 2.9 reads one as the label
+        # of a Fanuc-style M98 subprogram (its own o-words, o100 sub, are no program number);
+        # also after a UTF-8 byte order mark (read as latin-1)
+        Mark("O1234 program number",
+             r"^(?:\xef\xbb\xbf)?\s*O\d{3,5}\b(?![ \t]*[A-Za-z][ \t]*[A-Za-z])", False),
+        Mark("G43 H length offset", r"\bG43\s*H\d+|\bG43\s*Z[-\d.]+\s*H\d+", False, False),
+        Mark("G28 G91 return", r"\bG28\s*G91|\bG91\s*G28", False, False),  # grbl's too
         Mark("G05.1 AI contour", r"\bG0?5\.1\b", True),
-        Mark("#100= macro variable", r"^\s*#\d+\s*=", False),  # LinuxCNC's too
+        Mark("#100= macro variable", r"^\s*#\d+\s*=", False, False),  # LinuxCNC's too
         Mark("IF[..]GOTO", r"\bIF\s*\[.*\]\s*GOTO", True),
-        Mark("M98 P subprogram call", r"\bM98\s*P", False),  # LinuxCNC 2.9 reads M98
+        Mark("M98 P subprogram call", r"\bM98\s*P", False, False),  # LinuxCNC 2.9 reads M98
         Mark("G65 P macro call", r"\bG65\s*P", True),
+        # LinuxCNC refuses both ("Unknown m code used: M29", "Unknown g code used"), grbl too
+        Mark("M29 rigid tapping", r"\bM29\b", True),
+        Mark("G54.1 P work offset", r"\bG54\.1\s*P", True),
     ],
     LINUXCNC: [
         Mark("o-word sub/call/if",
@@ -89,7 +103,8 @@ _SAMPLE_CHARS = 400_000  # headers and the first blocks tell; no need to scan 30
 _NEEDS = {
     SINUMERIK: [("%_N_",), ("CYCLE8",), ("G64",), ("=",), ("DEF",), ("TRAORI", "TRAFOOF"),
                 ("MSG",), ("=",), ("=",), ("D",)],
-    FANUC: [("O",), ("G43",), ("G28",), ("5.1",), ("#",), ("GOTO",), ("M98",), ("G65",)],
+    FANUC: [("O",), ("G43",), ("G28",), ("5.1",), ("#",), ("GOTO",), ("M98",), ("G65",),
+            ("M29",), ("G54.1",)],
     LINUXCNC: [("O",), ("#<",), ("G64",), ("MSG", "DEBUG", "PRINT"), ("M2",)],
     GRBL: [("$",), ("GRBL",), ("LASER",), ("$H",)],
     HEIDENHAIN: [("%",), ("*",), ("G9",)],
@@ -112,7 +127,9 @@ def detect(text: str) -> Detected:
     reads as well as Fanuc): the dialect with the most marks of its own wins,
     then the one with the most marks, then the first in :data:`DIALECTS`.  A
     dialect that cannot read something in the program (Fanuc and a ``;``
-    comment) is not chosen.  No mark: generic.
+    comment) is not chosen, nor one whose marks are all in other controls'
+    programs too (a grbl file's ``G28 G91 Z0``, a LinuxCNC file's ``G43 H1``:
+    see :class:`Mark`).  No mark: generic.
     """
     sample = text[:_SAMPLE_CHARS] + "\n" + text[-20_000:]
     upper = sample.upper()
@@ -124,9 +141,38 @@ def detect(text: str) -> Detected:
         found = [m for m, rx, need in zip(_MARKS[name], _COMPILED[name], _NEEDS[name])
                  if any(t in upper for t in need) and rx.search(sample)]
         score = (sum(m.only for m in found), len(found))
-        if score > best_score:
+        if score > best_score and any(m.alone for m in found):
             best, best_score, best_marks = name, score, tuple(m.name for m in found)
     return Detected(best, best_marks)
+
+
+# ------------------------------------------------------------- units by G code ----
+# Sinumerik's G700 and G710 select inch and metric for the lengths and the feed F alike
+# (Siemens: "G700: inch dimensional notation, also for feed F"): what G20 and G21 mean
+# elsewhere, and the interpreter reads them so.  G70 and G71 select the unit of the lengths
+# only: F stays in the machine's basic system, set in its machine data, which a program
+# does not say; they keep their codes, and the moves under G70 are left as programmed (G70
+# is a finishing cycle on a Fanuc lathe and in LinuxCNC, inch in Heidenhain ISO).  No other
+# control has G700 or G710: the generic grammar reads them as Sinumerik does.
+_SINUMERIK_UNITS = {700.0: 20.0, 710.0: 21.0}
+UNIT_CODES = {SINUMERIK: _SINUMERIK_UNITS, GENERIC: _SINUMERIK_UNITS}
+
+
+def read_unit_codes(letter: np.ndarray, value: np.ndarray, dialect: str) -> None:
+    """Give the G words that select units the codes the interpreter reads (in place).
+
+    ``letter`` (n_words,) uint8 letter codes, ``value`` (n_words,) float64 values of a
+    program read in the grammar ``dialect``: G700 becomes 20, G710 21 (see
+    :data:`UNIT_CODES`).  The words' text and spans are not changed.
+    """
+    codes = UNIT_CODES.get(dialect)
+    if not codes:
+        return
+    g = np.flatnonzero(letter == ord("G"))  # a few G words among many: work on those
+    g_value = value[g]
+    for code, meaning in codes.items():
+        g_value[g_value == code] = meaning
+    value[g] = g_value
 
 
 # ------------------------------------------------------ Fanuc decimal point ----

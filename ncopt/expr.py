@@ -14,7 +14,23 @@ from lark import Token, Tree
 
 from .errors import NcoptError
 
-MAX_PARAM = 5602  # RS-274NGC numbered parameters run 1..5602
+# The numbered variables the controls have, and what ncopt reads: their union.  LinuxCNC:
+# #1-#5601 (rs274 refuses #0 and #5602: "Parameter number out of range").  Fanuc custom
+# macro B: #0 the null variable (always vacant, read only), #1-#33 local, #100-#999 common
+# (#100-#199 and #500-#999; #200-#499 with more common variables), #1000 and up system
+# variables (offsets, positions, #3000 alarms: #1000-#9999, and #10000-#89999 on the
+# Series 30i, tool offsets #10001-#19999 among them); the 30i adds the common variables
+# #98000-#98499 and the variables of six digits #100000-#199999 and #900000-#999999.
+# Which of these a control has depends on its model and options, which ncopt does not
+# know: a number in one of the ranges is read, its value unknown until the program assigns
+# it (the words that use it are not planned); a number in none of them is refused.
+VARIABLE_RANGES = ((0, 89_999), (98_000, 98_499), (100_000, 199_999), (900_000, 999_999))
+NULL_VARIABLE = 0  # Fanuc's #0: vacant whatever is assigned to it
+
+
+def is_variable(index: int) -> bool:
+    """Whether some control has the numbered variable ``#index`` (:data:`VARIABLE_RANGES`)."""
+    return any(lo <= index <= hi for lo, hi in VARIABLE_RANGES)
 
 
 class Unknown(Exception):
@@ -56,14 +72,16 @@ class Params:
         else:
             number = self.eval(node.children[0])
         index = int(round(number))
-        if not 1 <= index <= MAX_PARAM:
-            raise NcoptError(f"parameter number {index} out of range 1..{MAX_PARAM}")
+        if not is_variable(index):
+            raise NcoptError(f"variable number {index} is out of the range of every control "
+                             "(LinuxCNC #1-#5601: \"Parameter number out of range\"; Fanuc #0-"
+                             "#89999, #98000-#98499, #100000-#199999, #900000-#999999)")
         return index
 
     def get(self, node: Tree) -> float:
         key = self.key(node)
-        if key not in self.values:
-            raise Unknown(key)
+        if key == NULL_VARIABLE or key not in self.values:
+            raise Unknown(key)  # a vacant (null) variable is no number either
         return self.values[key]
 
     def eval(self, node) -> float:
@@ -92,7 +110,7 @@ class Params:
             number = float(target.children[0]) if target.data == "num_param" \
                 else self.eval(target.children[0])
             index = int(round(number))  # EXISTS[#99999] is false, not an error
-            return float(1 <= index <= MAX_PARAM and index in self.values)
+            return float(index != NULL_VARIABLE and is_variable(index) and index in self.values)
         if len(node.children) == 1:
             return self.eval(node.children[0])
         raise Unknown(kind)

@@ -24,6 +24,7 @@ from .expr import Params, Unknown
 from .feedmode import G93, G95, tip_feed_mm_min
 from .model import LineKind, LineState, Program, Toolpath
 from .orientation import Orientation, read_orientation, with_tool_axis
+from .parse import unread_lines_warning
 from .planes import after_keyword
 from .refuse import MIN_ARC_RADIUS_MM, check_arc_centres, check_signs, check_words
 
@@ -312,6 +313,9 @@ def _executed_lines(prog: Program, lines: _LineTable, warnings: list) -> np.ndar
     if ends.size:
         executed[ends[0] + 1:] = False
     executed &= prog.line_kind != LineKind.TRAILER
+    unread = unread_lines_warning(prog)
+    if unread:
+        warnings.append(unread)
     return executed
 
 
@@ -347,6 +351,9 @@ def _check_semantics(prog: Program, lines: _LineTable, executed: np.ndarray) -> 
         _fail(prog, bad[0], "R word with no G code that uses it; remove the R word")
     arc = np.isin(motion, [20, 30]) & executed & (axes | lines.has_g({20, 30}))
     no_centre = ~(lines.present("I") | lines.present("J") | lines.present("K") | lines.present("R"))
+    # an arc whose line holds what ncopt does not read (Sinumerik CR=R1*2, AR=90, I=AC(5))
+    # may give its centre there: it is no move ncopt reads, and the position is lost after it
+    no_centre &= prog.line_kind != LineKind.OPAQUE
     if (arc & no_centre).any():
         _fail(prog, np.flatnonzero(arc & no_centre)[0],
               "arc with none of I, J, K or R; give the centre or the radius")

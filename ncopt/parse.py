@@ -15,6 +15,11 @@ A line one dialect's grammar refuses but another reads (``R1=5`` under
 What no grammar should be asked to read (UTF-16 files, a byte order mark,
 CR-only line ends, Heidenhain conversational programs) is refused first by
 :func:`ncopt.refuse.check_text`.
+
+The program runs from its opening ``%`` (after a header of blank and comment
+lines, if any) to its closing one; the lines after that are read by no control
+and by no grammar here (``LineKind.TRAILER``), with a warning
+(:func:`unread_lines_warning`).
 """
 
 from __future__ import annotations
@@ -27,16 +32,16 @@ import numpy as np
 from lark import Lark, Token, Tree
 from lark.exceptions import UnexpectedInput
 
-from .dialect import DIALECTS, FANUC, GENERIC, GRBL
+from .dialect import DIALECTS, FANUC, GENERIC, GRBL, LINUXCNC, read_unit_codes
 from .errors import NcParseError, UsageError
 from .memory import release_freed_memory, working_memory
 from .model import VECTOR_WORD_CODES, LineKind, Program
 from .numtext import EXACT_DIGITS, MAX_NUMBER_CHARS, number_values, parse_numbers, run_sums
-from .refuse import caret_context, check_text, klartext_what, looks_like_klartext
+from .refuse import caret_context, check_text, klartext_what, looks_like_klartext, refuse_at
 from .threads import available_cpus, map_in_threads
 
 __all__ = ["caret_context", "grammar_path", "dialect_name", "parser", "byte_classes",
-           "parse_text", "read_program"]
+           "parse_text", "read_program", "unread_lines_warning"]
 
 # byte classes of the fast path
 _SPACE, _LETTER, _DIGIT, _SIGN, _POINT, _NL, _OTHER = range(7)
@@ -103,12 +108,20 @@ def byte_classes(dialect: str | None = None) -> np.ndarray:
 
 
 _TAPE_MARK = re.compile(r"(?m)^[ \t]*(?:[Nn][0-9.]*[ \t]*)?%")
-# what may stand before the opening '%': blanks and a tape leader (NULs, DELs)
+# what may stand before the opening '%': a header of blank lines, tape leader (NULs,
+# DELs) and comment lines, ( ) or ';' (a CAM system's "(PROGRAM FROM FUSION)")
+_BLANKS = r"[ \t\f\v\r\x00-\x08\x0e-\x1f\x7f]*"
+_HEADER = re.compile(rf"(?:{_BLANKS}(?:\([^()\r\n]*\){_BLANKS})*(?:;[^\r\n]*)?\n)*{_BLANKS}")
 _LEADER = re.compile(r"[\s\x00-\x08\x0e-\x1f\x7f]*")
 
 
-def _trailer_start(text: str, line_start: np.ndarray) -> int:
-    """First line after the closing ``%`` (controls read nothing after it)."""
+def _trailer_start(text: str, line_start: np.ndarray, name: str, path: str) -> int:
+    """First line after the closing ``%`` (controls read nothing after it).
+
+    The first ``%`` opens the program when only a header stands before it (see
+    :data:`_HEADER`), else it closes it.  Under the LinuxCNC dialect a header with a
+    comment before the opening ``%`` is refused, as rs274 refuses it.
+    """
     marks = []
     pos = text.find("%")
     while pos >= 0 and len(marks) < 2:  # '%' is rare: look only where it stands
@@ -119,11 +132,29 @@ def _trailer_start(text: str, line_start: np.ndarray) -> int:
         pos = text.find("%", pos + 1)
     if not marks:
         return line_start.shape[0] - 1
-    opening = _LEADER.fullmatch(text, 0, marks[0]) is not None
+    opening = _HEADER.fullmatch(text, 0, marks[0]) is not None
+    if opening and name == LINUXCNC and _LEADER.fullmatch(text, 0, marks[0]) is None:
+        line = int(np.searchsorted(line_start, marks[0], side="right"))
+        raise refuse_at(path, text, marks[0], line, text.index("%", marks[0]) - marks[0] + 1,
+                        "`%` after comment lines: LinuxCNC reads a '%' only as the first line "
+                        "that is not blank (rs274: \"Bad character '%' used\"); move the "
+                        "comments below the '%'")
     closing = marks[1] if opening and len(marks) == 2 else (None if opening else marks[0])
     if closing is None:
         return line_start.shape[0] - 1
     return int(np.searchsorted(line_start, closing, side="right"))
+
+
+def unread_lines_warning(prog: Program) -> str | None:
+    """``path:first-last: ...`` for the lines after the closing ``%`` that hold more than
+    blanks: no control reads them, nor does ncopt (it keeps them byte for byte)."""
+    trailer = np.flatnonzero(prog.line_kind == LineKind.TRAILER)
+    if trailer.size == 0 or _LEADER.fullmatch(prog.text, int(prog.line_start[trailer[0]])):
+        return None  # blank lines, a tape trailer of NULs or a DOS end of file (Ctrl-Z)
+    filled = [i for i in trailer.tolist() if not _LEADER.fullmatch(prog.line_text(i))]
+    return (f"{prog.path}:{filled[0] + 1}-{filled[-1] + 1}: after the closing '%' (line "
+            f"{int(trailer[0])}): no control reads these lines, and ncopt does not either; "
+            "they are kept as they are")
 
 
 def parse_text(text: str, path: str = "<input>", *, dialect: str | None = None,
@@ -163,13 +194,13 @@ def parse_text(text: str, path: str = "<input>", *, dialect: str | None = None,
     line_start, content_end = _split_lines(raw)
     n_lines = line_start.shape[0] - 1
     classes, block_end = _fast_tables(name)
-    scan, vector_at = _vector_words_read_plain(text, raw, line_start, content_end, name)
+    scan, address_at = _vector_words_read_plain(text, raw, line_start, content_end, name)
     fast, blank, words = _fast_path_chunked(scan, line_start,
                                             _before_block_end(raw, line_start, content_end,
                                                               block_end), classes)
-    if vector_at is not None:
-        words = _vector_codes(words, vector_at, raw)
-    trailer = np.arange(n_lines) >= _trailer_start(text, line_start)
+    if address_at is not None:
+        words = _vector_codes(words, address_at)
+    trailer = np.arange(n_lines) >= _trailer_start(text, line_start, name, path)
     if not use_fast_path:  # every line through Lark: the reference the fast path is tested against
         fast = np.zeros(n_lines, dtype=bool)
         blank = blank & False
@@ -199,54 +230,73 @@ def parse_text(text: str, path: str = "<input>", *, dialect: str | None = None,
         if progress is not None:
             progress(i)
     prog = _assemble(path, text, line_start, kind, has_expr, words, slow_words, opaque, exprs)
+    read_unit_codes(prog.word_letter, prog.word_value, name)  # Sinumerik G700: inch, as G20
     release_freed_memory()  # the byte-level temporaries of 1M lines: hundreds of MB
     return prog
 
 
+# Address words whose address is more than a letter, read as words with a letter code of
+# their own: the grammar's terminal and the code of each (None: by the letter, see
+# VECTOR_WORD_CODES).  CR= is the radius of an arc: R's code (the R-format arc: the same
+# radius, and the same sign for the arc of more than 180 degrees).
+RADIUS_CODE = ord("R")
+_ADDRESS_WORDS = (("VECTOR_ADDRESS", None), ("RADIUS_ADDRESS", RADIUS_CODE))
+
+
 @lru_cache(maxsize=None)
-def _vector_pattern(name: str):
-    """The grammar's VECTOR_ADDRESS terminal (``A3=`` before a number), None if it has none."""
-    for t in _parser(name).terminals:
-        if t.name == "VECTOR_ADDRESS":
-            return re.compile(t.pattern.to_regexp())
-    return None
+def _address_patterns(name: str) -> tuple:
+    """(pattern, code) of the grammar's address word terminals (``A3=``, ``CR=`` before a
+    number), of those it has: see :data:`_ADDRESS_WORDS`."""
+    terms = {t.name: t for t in _parser(name).terminals}
+    return tuple((re.compile(terms[t].pattern.to_regexp()), code)
+                 for t, code in _ADDRESS_WORDS if t in terms)
 
 
 def _vector_words_read_plain(text, raw, line_start, content_end, name):
-    """The bytes the fast path scans, with each Sinumerik vector word ``A3=0.5`` read as
-    ``A  0.5`` (its '3' and '=' as blanks), and the letter positions of those words.
+    """The bytes the fast path scans, with each address word of more than a letter read
+    as a plain word: the Sinumerik vector word ``A3=0.5`` as ``A  0.5`` (its '3' and '='
+    as blanks), the arc radius ``CR=5`` as ``C  5``; and (start, letter code) of each.
 
-    The grammar's own VECTOR_ADDRESS terminal finds them, line by line, on the lines
-    that hold an '=', where a token starts (line start, or after a character no name
-    continues with); a line the fast path then takes is plain words, so every match
-    is a word Lark reads the same (the fast path is tested against Lark).  TRAORI
+    The grammar's own terminals (VECTOR_ADDRESS, RADIUS_ADDRESS) find them, line by line,
+    on the lines that hold an '=', where a token starts (line start, or after a character
+    no name continues with); a line the fast path then takes is plain words, so every
+    match is a word Lark reads the same (the fast path is tested against Lark).  TRAORI
     programs have one on nearly every line: through Lark they took 0.26-1.3 ms a line.
     """
-    pattern = _vector_pattern(name)
-    eq = np.flatnonzero(raw == ord("=")) if pattern is not None else np.zeros(0, np.int64)
+    patterns = _address_patterns(name)
+    eq = np.flatnonzero(raw == ord("=")) if patterns else np.zeros(0, np.int64)
     if eq.size == 0:
         return raw, None
-    scan, letters = raw.copy(), []
+    scan, found = raw.copy(), []
     for i in np.unique(np.searchsorted(line_start, eq, side="right") - 1).tolist():
         lo = int(line_start[i])
-        for m in pattern.finditer(text, lo, int(content_end[i])):
-            # after a letter, digit or '_' Lark may read a longer token (X1A3= is an
-            # address assignment): such lines are left to Lark
-            if m.start() > lo and (text[m.start() - 1].isalnum() or text[m.start() - 1] == "_"):
-                continue
-            scan[m.start() + 1:m.end()] = ord(" ")
-            letters.append(m.start())
-    return (scan, np.array(letters, dtype=np.int64)) if letters else (raw, None)
+        for pattern, code in patterns:
+            for m in pattern.finditer(text, lo, int(content_end[i])):
+                # after a letter, digit or '_' Lark may read a longer token (X1A3= is an
+                # address assignment): such lines are left to Lark
+                before = text[m.start() - 1] if m.start() > lo else " "
+                if before.isalnum() or before == "_":
+                    continue
+                scan[m.start() + 1:m.end()] = ord(" ")
+                letter = text[m.start()].upper()
+                found.append((m.start(), VECTOR_WORD_CODES[letter] if code is None else code))
+    if not found:
+        return raw, None
+    found.sort()
+    return scan, (np.array([f[0] for f in found], np.int64),
+                  np.array([f[1] for f in found], np.uint8))
 
 
-def _vector_codes(words, vector_at, raw):
-    """The fast path's words with the letter codes of the vector words (``A3=``)."""
+def _vector_codes(words, address_at):
+    """The fast path's words with the letter codes of the address words (``A3=``,
+    ``CR=``): ``address_at`` (starts sorted, codes) from :func:`_vector_words_read_plain`."""
     line, letter, value, start, end, num_start = words
-    at = np.isin(start, vector_at)
+    starts, codes = address_at
+    k = np.minimum(np.searchsorted(starts, start), starts.size - 1)
+    at = starts[k] == start
     if at.any():
         letter = letter.copy()
-        for c, code in VECTOR_WORD_CODES.items():
-            letter[at & ((raw[start] & 0xDF) == ord(c))] = code
+        letter[at] = codes[k[at]]
     return line, letter, value, start, end, num_start
 
 
@@ -421,7 +471,7 @@ def _parse_slow_line(text: str, lo: int, hi: int, line_no: int, path: str, name:
             kind = LineKind.OPAQUE
             head = str(child.children[0]).strip()
             items.append(("opaque", head.rstrip("= \t")))
-        elif child.data in ("number_word", "expr_word", "vector_word"):
+        elif child.data in ("number_word", "expr_word", "vector_word", "radius_word"):
             items.append(("word", _word_record(child, lo, line_no)))
             if child.data == "expr_word":
                 items.append(("expr", None, ("word", lo + child.meta.start_pos, child.children[1])))
@@ -434,10 +484,10 @@ def _word_record(node: Tree, offset: int, line_no: int) -> tuple:
     letter_tok = node.children[0]
     start = offset + letter_tok.start_pos
     end = offset + node.meta.end_pos
-    if node.data in ("number_word", "vector_word"):
+    if node.data in ("number_word", "vector_word", "radius_word"):
         num = node.children[1]
-        code = VECTOR_WORD_CODES[str(letter_tok)[0].upper()] if node.data == "vector_word" \
-            else ord(str(letter_tok).upper())
+        code = (VECTOR_WORD_CODES[str(letter_tok)[0].upper()] if node.data == "vector_word"
+                else RADIUS_CODE if node.data == "radius_word" else ord(str(letter_tok).upper()))
         return (line_no, code, float(num), start, end, offset + num.start_pos)
     value = node.children[1]
     vstart = value.meta.start_pos if isinstance(value, Tree) else value.start_pos
@@ -482,6 +532,7 @@ _CONSTRUCTS = {
     "assign": "a parameter assignment",
     "expr_word": "a word with a computed value",
     "vector_word": "a Sinumerik tool vector word",
+    "radius_word": "a Sinumerik arc radius (CR=)",
     "named_param": "a LinuxCNC named parameter",
     "eol_comment": "a ';' comment",
     "block_end": "a Heidenhain ISO block end",

@@ -32,7 +32,9 @@ Two kinds of checks, both raising :class:`~ncopt.errors.NcParseError`
   I, J and K (argument specification II): its block is not checked.
 * A number with an exponent (``S1e3``): NC numbers have none; the text reads
   as ``S1`` followed by an ``E3`` word ("E word with no G70, G76, M66, M67 or
-  M68 to use it").
+  M68 to use it").  In a block with one of those codes the E word is the code's
+  own (``m66e0l0``: M66 E0 L0, as rs274 reads it), and so is it in a Fanuc macro
+  call (G65, G66: E is the argument #8).
 """
 
 from __future__ import annotations
@@ -166,7 +168,7 @@ def check_words(prog: Program, macro_calls: np.ndarray | None = None) -> None:
         g = (prog.word_letter == ord("G")) & np.isin(prog.word_value, (65.0, 66.0))
         macro_calls[prog.word_line[g]] = True
     dup = _first_duplicate(prog, macro_calls)
-    found = [k for k in (dup, _first_exponent(prog)) if k is not None]
+    found = [k for k in (dup, _first_exponent(prog, macro_calls)) if k is not None]
     if not found:
         return
     k = min(found, key=lambda item: item[0])
@@ -214,12 +216,24 @@ def _first_duplicate(prog: Program, macro_calls: np.ndarray) -> tuple[int, str] 
     return None
 
 
-def _first_exponent(prog: Program) -> tuple[int, str] | None:
-    """(index, message) of the first number written with an exponent (``S1e3``)."""
+# the codes whose block takes an E word (LinuxCNC's list, rs274: "E word with no G70, G76,
+# M66, M67 or M68 to use it"), the values of their words
+_E_USERS = (("G", (70.0, 76.0)), ("M", (66.0, 67.0, 68.0)))
+
+
+def _first_exponent(prog: Program, macro_calls: np.ndarray) -> tuple[int, str] | None:
+    """(index, message) of the first number written with an exponent (``S1e3``), on a
+    line whose codes take no E word (``macro_calls``: (n_lines,) bool, lines calling a
+    Fanuc macro, whose E is an argument)."""
     e_words = np.flatnonzero(prog.word_letter == ord("E"))
     e_words = e_words[e_words > 0]
     if e_words.size == 0:
         return None
+    takes_e = macro_calls.copy()
+    for letter, codes in _E_USERS:
+        users = (prog.word_letter == ord(letter)) & np.isin(prog.word_value, codes)
+        takes_e[prog.word_line[users]] = True
+    e_words = e_words[~takes_e[prog.word_line[e_words]]]
     prev = e_words - 1
     glued = (prog.word_line[prev] == prog.word_line[e_words]) & \
         (prog.word_end[prev] == prog.word_start[e_words]) & np.isfinite(prog.word_value[prev])
