@@ -1,9 +1,10 @@
 """``ncopt`` command line: a thin typer layer over :mod:`ncopt.api`.
 
-Startup stays light: ``ncopt --help`` and ``ncopt version`` import neither numpy nor lark
-nor the api; each command imports what it needs in its body.  Every command runs inside
-:func:`ncopt.stdio.command_faults`, so an ncopt error, an interrupt (Ctrl-C or SIGTERM) or
-a failed write to stdout ends it with one line on stderr and an exit code of
+Startup stays light: ``ncopt --help``, ``ncopt COMMAND -h`` and ``ncopt version`` import
+neither numpy nor lark nor the api, nor pydantic (which typer loads to convert any option
+value that is not a flag); each command imports what it needs in its body.  Every command
+runs inside :func:`ncopt.stdio.command_faults`, so an ncopt error, an interrupt (Ctrl-C or
+SIGTERM) or a failed write to stdout ends it with one line on stderr and an exit code of
 :class:`Exit`, never a traceback.  A command added with ``@app.command()`` gets the same.
 """
 
@@ -19,12 +20,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Optional
 
 import typer
+from typer.core import TyperGroup
 
 from . import __version__
 from .errors import (FileError, MeshError, NcoptError, NcParseError, NothingToPlan,
                      PlanningError, UsageError, VerificationError)
-from .stdio import (command_faults, err, interrupt, read_programs, say, stages, stderr_console,
-                    write_stdout)
+from .stdio import (command_faults, count, err, interrupt, read_programs, say, set_color,
+                    stages, stderr_console, styled, write_stdout)
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -49,6 +51,21 @@ class Exit(IntEnum):
 
 
 DIFFERENT = 1  # ncopt diff: the files differ (as diff(1) says it)
+WOULD_CHANGE = 1  # ncopt rewrite --check: the rewrite would change the program (as black)
+
+
+class _Group(TyperGroup):
+    """typer's group, with shell completion served although ncopt declares the completion
+    options itself (see InstallCompletion): typer registers its shells only where it adds
+    them."""
+
+    def _main_shell_completion(self, ctx_args, prog_name, complete_var=None):
+        var = complete_var or f"_{prog_name}_COMPLETE".replace("-", "_").upper()
+        if os.environ.get(var):
+            from typer.completion import completion_init
+
+            completion_init()
+        return super()._main_shell_completion(ctx_args, prog_name, complete_var)
 
 
 class _App(typer.Typer):
@@ -63,8 +80,8 @@ class _App(typer.Typer):
         return decorator
 
 
-app = _App(add_completion=False, pretty_exceptions_show_locals=False, no_args_is_help=True,
-           rich_markup_mode=None,
+app = _App(cls=_Group, add_completion=False, pretty_exceptions_show_locals=False,
+           no_args_is_help=True, rich_markup_mode=None,
            context_settings={"help_option_names": ["-h", "--help"]},
            help="Rewrite S and F words of finishing programs for constant vc and fz.")
 
@@ -143,6 +160,11 @@ SChanges = Annotated[Optional[str], typer.Option(
     "word). Default: between-passes for grbl, else anywhere.")]
 Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="No summary on stderr (errors "
                                      "still are).")]
+# per command, not on the root: typer converts every option value that is not a flag through
+# pydantic (90 ms to import), and a root option is converted before any command's -h
+Color = Annotated[str, typer.Option(
+    "--color", metavar="WHEN", help="Colour: auto (on a terminal, unless NO_COLOR is set), "
+    "always or never.")]
 KinematicsName = Annotated[Optional[str], typer.Option(
     "--kinematics", help="The machine's 5-axis kinematics, for programs that tilt the tool "
     "with rotary axes A/B/C: xyzac-trt, xyzac-head-table, xyzac-trt-linuxcnc, xyzbc-trt, "
@@ -160,7 +182,7 @@ def _exit_code(exc: NcoptError) -> Exit:
 
 
 def _fail(exc: NcoptError) -> None:
-    say(str(exc))
+    say(str(exc), error=True)
     raise typer.Exit(int(_exit_code(exc)))
 
 
@@ -168,6 +190,7 @@ def _guarded(fn):
     @functools.wraps(fn)
     def run(*args, **kwargs):
         with command_faults(_exit_code, Exit.INTERRUPTED):
+            set_color(kwargs.get("color", "auto"))  # every run: in-process runs share it
             return fn(*args, **kwargs)
     return run
 
@@ -187,10 +210,47 @@ def _say_version() -> int:
     return int(Exit.OK)
 
 
+def _show_help(ctx: typer.Context, value: bool) -> None:
+    if value and not ctx.resilient_parsing:
+        typer.echo(ctx.get_help(), color=ctx.color)
+        raise typer.Exit()
+
+
+# The help flag of a group, declared rather than left to click: click's own reaches typer's
+# value conversion as None, not a bool, and so imports pydantic before every `COMMAND -h`.
+HelpFlag = Annotated[bool, typer.Option(
+    "-h", "--help", is_eager=True, expose_value=False, callback=_show_help,
+    help="Show this message and exit.")]
+
+
+def _completion(action: str):
+    """typer's --install-completion / --show-completion callback, for a flag of our own."""
+    def run(ctx: typer.Context, param: typer.CallbackParam, value: bool) -> None:
+        if value and not ctx.resilient_parsing:
+            from typer import completion
+
+            completion.completion_init()
+            done = completion.install_callback if action == "install" else completion.show_callback
+            done(ctx, param, value)
+    return run
+
+
+# typer's own completion options (add_completion) default to None, not False: like click's
+# help flag above, they would load pydantic before every command ran or showed its help
+InstallCompletion = Annotated[bool, typer.Option(
+    "--install-completion", expose_value=False, callback=_completion("install"),
+    help="Install completion for the current shell.")]
+ShowCompletion = Annotated[bool, typer.Option(
+    "--show-completion", expose_value=False, callback=_completion("show"),
+    help="Show completion for the current shell, to copy it or customize the installation.")]
+
+
 @app.callback()
 def _root(version: Annotated[bool, typer.Option(
         "--version", is_eager=True, callback=_print_version,
-        help="Print the version and exit.")] = False) -> None:
+        help="Print the version and exit.")] = False, show_help: HelpFlag = False,
+        install_completion: InstallCompletion = False,
+        show_completion: ShowCompletion = False) -> None:
     """Rewrite S and F words of finishing programs for constant vc and fz."""
 
 
@@ -215,11 +275,12 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
              machine=None, tools_file=None, cutter=None, material=None,
              method="contact", ap=0.2, allowance_along="normal", decimal_point=None,
              operations=None, shape=None, stock=0.0, s_changes=None,
-             kinematics=None) -> "Job":
+             kinematics=None, spindle_needed=True) -> "Job":
     """A Job from command-line values and the profiles, checked; raises UsageError.
 
-    Command-line values win; then the machine profile (--machine, else the
-    profiles' default_machine); then ncopt's defaults.
+    Command-line values win; then the machine profile (--machine, else NCOPT_MACHINE,
+    else the profiles' default_machine); then ncopt's defaults.  ``spindle_needed``
+    False (inspect, which plans nothing): without a spindle given, its figures are NaN.
     """
     from .api import Job
     from .contacts import Method
@@ -234,8 +295,8 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
                                                                           "--corner-radius")
     ap, stock = length_mm(ap, "--ap"), length_mm(stock, "--stock")
     profiles = load(tools_file=tools_file)
-    name = machine or (profiles.default_machine[0] if profiles.default_machine else None)
-    m = profiles.machine(name) if name else None
+    m = profiles.chosen_machine(machine)
+    name = m.name if m is not None else None
     pick = lambda given, attr, default: given if given is not None else (  # noqa: E731
         getattr(m, attr) if m is not None else default)
     accel, max_rpm = pick(accel, "accel_rad_s2", None), pick(max_rpm, "max_rpm", None)
@@ -260,9 +321,11 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
             raise UsageError("give --material or --vc/--fz, not both")
         data = profiles.material(material)
         vc, fz = data.vc_m_min, data.fz_mm
-    if accel is None or max_rpm is None:
+    if (accel is None or max_rpm is None) and spindle_needed:
         raise UsageError("give the spindle: --accel RAD_S2 and --max-rpm RPM, or a --machine "
                          "profile (ncopt profiles lists them)")
+    if accel is None or max_rpm is None:
+        accel = max_rpm = float("nan")
     if planner not in ("lookahead", "forward"):
         raise UsageError(f"--planner must be lookahead or forward, not {planner!r}")
     if tool_point not in ("tip", "center"):
@@ -348,23 +411,36 @@ def rewrite(
     as_json: Annotated[bool, typer.Option(
         "--json", help="The summary as one JSON object on stderr instead of text (stdout "
         "stays the program).")] = False,
+    check: Annotated[bool, typer.Option(
+        "--check", help="Write nothing: exit 0 when the rewrite would change nothing, 1 "
+        "when it would, and say what would change (unless -q).")] = False,
+    color: Color = "auto",
 ) -> None:
     """Rewrite a program's S and F words; every other byte stays as it is."""
     from .api import rewrite_file
     from .fileio import output_file, write_output
 
     job = make_job(**_job_options(locals()))
+    if check and (output is not None or report is not None):
+        raise UsageError("--check writes nothing: leave out -o and --report")
     _check_report(report)
-    target = output_file(output, input)
+    target = None if check else output_file(output, input)
     [data] = read_programs([input])
     try:
         with stages(quiet or as_json) as show:
             result = rewrite_file(input, job, mesh_path=mesh, data=data, progress=show)
-    except NothingToPlan:
+    except NothingToPlan as exc:
+        if check:  # the rewrite would leave the program as it is
+            if not quiet:
+                say(f"ncopt: {input}: nothing would change: {exc.message}")
+            return
         if target is None:  # a filter never eats its input
             write_stdout(data)
         raise
     text = result.text.encode("latin-1")
+    if check:
+        _check_verdict(input, data, text, result.summary, quiet, as_json)
+        return
     if target is None:
         write_stdout(text)
     else:
@@ -378,6 +454,28 @@ def rewrite(
         say(json.dumps(result.summary.to_dict(), indent=2))
     elif not quiet:
         print_summary(result.summary, err)
+
+
+def _check_verdict(name: str, data: bytes, text: bytes, summary: "Summary", quiet: bool,
+                   as_json: bool) -> None:
+    """rewrite --check: what the rewrite would change; exit 1 when it would change
+    anything (black's convention), else return (exit 0)."""
+    if as_json:
+        import json
+        say(json.dumps(summary.to_dict(), indent=2))
+    elif not quiet:
+        print_summary(summary, err)
+    if text == data:
+        if not quiet and not as_json:
+            say(f"ncopt: {name}: nothing would change")
+        return
+    if not quiet and not as_json:
+        from .diffview import totals
+
+        t = totals(data.decode("latin-1").splitlines(), text.decode("latin-1").splitlines())
+        say(f"ncopt: {name} would change: {t.changed} of {count(t.lines, 'line')} (S in "
+            f"{t.s_changed}, F in {t.f_changed}); nothing written (--check)")
+    raise typer.Exit(WOULD_CHANGE)
 
 
 def _check_report(report: Optional[Path], json_ok: bool = False,
@@ -423,11 +521,12 @@ def s_changes_line(s: "Summary") -> str:
 
 def print_summary(s: "Summary", console: "Console") -> None:
     """The few lines a machinist reads after a rewrite."""
-    say = lambda text: console.print(text, markup=False)  # noqa: E731
-    say(f"ncopt: {s.blocks} blocks, {s.cutting_blocks} cutting blocks planned, "
-        f"{s.s_words} S and {s.f_words} F words written")
+    say = lambda text: console.print(styled(text))  # noqa: E731
+    say(f"ncopt: {count(s.blocks, 'block')}, {count(s.cutting_blocks, 'cutting block')} "
+        f"planned, {s.s_words} S and {count(s.f_words, 'F word')} written")
     planned = sum(1 for o in s.operations if o.planned)
-    say(f"ncopt: {planned} of {len(s.operations)} operations planned; program in {s.units}")
+    say(f"ncopt: {planned} of {count(len(s.operations), 'operation')} planned; program in "
+        f"{s.units}")
     for o in s.operations:
         say("ncopt:   " + _op_line(o))
     for tool, what, source in s.tools:
@@ -440,7 +539,8 @@ def print_summary(s: "Summary", console: "Console") -> None:
         f"{s.cut_time_after_min:.1f} min ({s.time_change_pct:+.1f} %), the whole program "
         f"(planned operations {s.planned_time_before_min:.1f} -> {s.planned_time_after_min:.1f} min)")
     if s.untimed_moves:
-        say(f"ncopt: {s.untimed_moves} feed blocks are not timed (position or feed not known)")
+        say(f"ncopt: {count(s.untimed_moves, 'feed block')} "
+            f"{'is' if s.untimed_moves == 1 else 'are'} not timed (position or feed not known)")
     say(f"ncopt: {s_changes_line(s)}")
     if s.mesh_edge_mm is not None:
         say(f"ncopt: mesh median edge {s.mesh_edge_mm:.2f} mm")
@@ -450,7 +550,8 @@ def print_summary(s: "Summary", console: "Console") -> None:
             f"{fit.deepest_gouge_mm:.3f} mm)")
     if s.normals_from == "toolpath":
         say(f"ncopt: no mesh: normals from the toolpath (stepover {s.stepover_mm:.2f} mm); "
-            f"{s.one_sided_points} points at the edge of the machined area planned conservatively")
+            f"{count(s.one_sided_points, 'point')} at the edge of the machined area planned "
+            "conservatively")
         if s.unknown_contact_pct > 0:
             say(f"ncopt: {s.unknown_contact_pct:.1f} % of the planned cut has no contact the "
                 "toolpath can show (walls, plunges, passes with no neighbour): planned at the "
@@ -459,12 +560,12 @@ def print_summary(s: "Summary", console: "Console") -> None:
     for note in s.control_notes:
         say(f"ncopt: {s.control} control: {note}")
     if s.close_s_words:
-        say(f"ncopt: {s.close_s_words} S words had to come sooner than --min-s-interval-ms "
-            "after the previous one (a fall in speed that vc needs)")
+        say(f"ncopt: {count(s.close_s_words, 'S word')} had to come sooner than "
+            "--min-s-interval-ms after the previous one (a fall in speed that vc needs)")
     for w in s.warnings[:10]:
         say(f"warning: {w}")
     if len(s.warnings) > 10:
-        say(f"warning: {len(s.warnings) - 10} more warnings")
+        say(f"warning: {count(len(s.warnings) - 10, 'more warning')}")
 
 
 def _op_line(o) -> str:
@@ -498,7 +599,7 @@ def batch(
     material: Material = None, method: MethodName = "contact", ap: Ap = "0.2",
     allowance_along: AllowanceAlong = "normal", operations: Operations = None,
     shape: Shape = None, stock: Stock = "0", quiet: Quiet = False,
-    kinematics: KinematicsName = None,
+    kinematics: KinematicsName = None, color: Color = "auto",
 ) -> None:
     """Rewrite every program of a folder in parallel; one bad file never stops the others."""
     from .batch import Task, find_programs, plan_targets, prepare_output_folder, run_batch
@@ -554,7 +655,7 @@ def report(
     tool_point: ToolPoint = "tip", tool: Tool = None, rapid: Rapid = None,
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, control: Control = None, decimal_point: DecimalPoint = None,
-    quiet: Quiet = False, kinematics: KinematicsName = None,
+    quiet: Quiet = False, kinematics: KinematicsName = None, color: Color = "auto",
 ) -> None:
     """Write one HTML page about a program (and its original): times, curves, 3D toolpath."""
     from .report import from_programs
@@ -593,7 +694,7 @@ def simulate(
     judged_band: Annotated[Optional[float], typer.Option(
         "--fz-band", help="fz band judged, percent (default: the band an ncopt stamp "
         "records, else 2).")] = None,
-    quiet: Quiet = False, kinematics: KinematicsName = None,
+    quiet: Quiet = False, kinematics: KinematicsName = None, color: Color = "auto",
 ) -> None:
     """Replay a program on a spindle that ramps at its real acceleration: time, fz, vc."""
     from dataclasses import replace
@@ -679,7 +780,7 @@ def _simulation_outputs(runs, as_json, csv, plot, plot_path, color_by, quiet=Fal
 
 def print_simulation(r, console: "Console") -> None:
     """The simulation summary a technologist reads before sending a program."""
-    say = lambda text: console.print(text, markup=False)  # noqa: E731
+    say = lambda text: console.print(styled(text))  # noqa: E731
     say(f"{r.path}: feed moves {r.feed_moves_time_min:.2f} min ({r.cutting_time_min:.2f} min "
         f"cutting), rapids {r.rapid_time_min:.2f} min, total {r.total_time_min:.2f} min; "
         f"highest S {r.max_rpm:.0f} RPM (line {r.max_rpm_line})")
@@ -687,10 +788,11 @@ def print_simulation(r, console: "Console") -> None:
         f"of the cut; most above {r.fz_max_over_pct:+.2f} % (line {r.fz_max_over_line}), "
         f"most below {-r.fz_min_under_pct:+.2f} % (line {r.fz_min_under_line})")
     say(f"  vc at most {r.vc_max_over_pct:+.2f} % of its target {r.vc_target_m_min:.1f} m/min "
-        f"(line {r.vc_max_over_line}); mean {r.vc_mean_m_min:.1f} m/min; {r.s_words} S words")
+        f"(line {r.vc_max_over_line}); mean {r.vc_mean_m_min:.1f} m/min; "
+        f"{count(r.s_words, 'S word')}")
     if r.lag:
-        say(f"  the spindle cannot follow the S words in {len(r.lag)} places (first at line "
-            f"{r.lag[0].first_line}): fz leaves its band while it catches up")
+        say(f"  the spindle cannot follow the S words in {count(len(r.lag), 'place')} (first "
+            f"at line {r.lag[0].first_line}): fz leaves its band while it catches up")
     for w in r.warnings[:5]:
         say(f"  warning: {w}")
 
@@ -699,38 +801,30 @@ def print_simulation(r, console: "Console") -> None:
 def inspect(
     program: Annotated[str, typer.Argument(help="NC program, or - for stdin.")],
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
+    diameter: Diameter = None, corner_radius: CornerRadius = None, teeth: Teeth = 2,
+    shape: Shape = None, cutter: CutterName = None, vc: Vc = None, fz: Fz = None,
+    material: Material = None, tool: Tool = None, operations: Operations = None,
     control: Control = None, decimal_point: DecimalPoint = None,
     machine: MachineName = None, tools_file: ToolsFile = None, max_feed: MaxFeed = None,
-    kinematics: KinematicsName = None,
+    kinematics: KinematicsName = None, color: Color = "auto",
 ) -> None:
-    """Show what ncopt understands of a program before it changes anything (read with the
-    same machine profile, dialect and decimal point as rewrite)."""
-    from .controls import CONTROLS
+    """Show what ncopt understands of a program before it changes anything, and its
+    operations as rewrite would split and judge them (the same cutter, cutting-data and
+    machine options; nothing is planned, so no spindle is needed)."""
     from .inspect import inspect_text, render_inspection
-    from .profiles import load
-    from .stdio import stdout_console
+    from .stdio import listing, stdout_console
 
-    profiles = load(tools_file=tools_file)
-    name = machine or (profiles.default_machine[0] if profiles.default_machine else None)
-    m = profiles.machine(name) if name else None
-    if m is not None:
-        control = control if control is not None else m.control
-        decimal_point = decimal_point if decimal_point is not None else m.decimal_point
-        max_feed = max_feed if max_feed is not None else m.max_feed_mm_min
-        kinematics = kinematics if kinematics is not None else m.kinematics
+    job = make_job(**_job_options(locals()), spindle_needed=False)
     [data] = read_programs([program])
-    if control is not None and control not in CONTROLS:
-        raise UsageError(f"--dialect must be one of {', '.join(CONTROLS)}, not {control!r}")
-    from .kinematics import check_name
-
-    info = inspect_text(data.decode("latin-1"), program, dialect=control,
-                        decimal_point=decimal_point, kinematics=check_name(kinematics),
-                        max_feed_mm_min=max_feed if max_feed is not None else float("inf"))
-    if as_json:
-        import json
-        print(json.dumps(info.to_dict(), indent=2))
-    else:
-        render_inspection(info, stdout_console(highlight=False, soft_wrap=True))
+    info = inspect_text(data.decode("latin-1"), program, dialect=job.control,
+                        decimal_point=job.decimal_point, kinematics=job.kinematics,
+                        max_feed_mm_min=job.machine.max_feed_mm_min, job=job)
+    with listing():  # `| head` ends it quietly
+        if as_json:
+            import json
+            print(json.dumps(info.to_dict(), indent=2))
+        else:
+            render_inspection(info, stdout_console(highlight=False, soft_wrap=True))
 
 
 @app.command()
@@ -742,6 +836,7 @@ def diff(
                                            "through $PAGER (less -R).")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing; the exit code "
                                         "says whether the files differ.")] = False,
+    color: Color = "auto",
 ) -> None:
     """Show which blocks changed: side by side on a terminal (paged), a unified diff otherwise.
 
@@ -758,15 +853,56 @@ def diff(
     raise typer.Exit(DIFFERENT)
 
 
-@app.command()
-def profiles(
+profiles_app = _App(no_args_is_help=False, rich_markup_mode=None,
+                    context_settings={"help_option_names": ["-h", "--help"]})
+app.add_typer(profiles_app, name="profiles")
+
+
+@profiles_app.callback(invoke_without_command=True)
+@_guarded
+def profiles(ctx: typer.Context, tools_file: ToolsFile = None, color: Color = "auto") -> None:
+    """List the machine, tool and cutting-data profiles found, and where from
+    (profiles init: write a commented profile for a machine)."""
+    if ctx.invoked_subcommand is not None:
+        return
+    from .profiles import load, render_profiles
+    from .stdio import listing, stdout_console
+
+    found = load(tools_file=tools_file)
+    with listing():  # `| head` ends it quietly
+        render_profiles(found, stdout_console(highlight=False))
+
+
+@profiles_app.command("init")
+def profiles_init(
+    name: Annotated[str, typer.Argument(help="The machine's name; a profile of that name "
+                                        "(ncopt profiles) gives its values.")] = "my-machine",
+    output: Annotated[Optional[str], typer.Option(
+        "-o", "--output", help="The file to write (never one that exists, e.g. ncopt.toml "
+        "in the project's folder); - or omitted: stdout.")] = None,
     tools_file: ToolsFile = None,
 ) -> None:
-    """List the machine, tool and cutting-data profiles found, and where from."""
-    from .profiles import load, render_profiles
-    from .stdio import stdout_console
+    """Write a commented TOML profile for a machine: every key, what it means, its unit."""
+    from .profiles import load, machine_template
 
-    render_profiles(load(tools_file=tools_file), stdout_console(highlight=False))
+    if not name.strip() or any(ord(c) < 32 for c in name):
+        raise UsageError(f"a machine's name is a word such as my-mill, not {name!r}")
+    base = load(tools_file=tools_file).machines.get(name)
+    text = machine_template(name, base).encode("utf-8")
+    if output in (None, "-"):
+        write_stdout(text)
+        return
+    try:
+        with open(output, "xb") as handle:
+            handle.write(text)
+    except FileExistsError:
+        raise FileError("exists; profiles init never replaces a file: name another, or add "
+                        "the machine to it by hand", output) from None
+    except OSError as exc:
+        raise FileError(f"cannot write the profile: {exc.strerror}; check the path",
+                        output) from None
+    todo = "" if base is not None else "; give accel_rad_s2 and max_rpm in it"
+    say(f"ncopt: machine profile {name} written to {output}{todo}")
 
 
 @app.command()
@@ -783,7 +919,7 @@ def main() -> None:
     try:
         app()
     except NcoptError as exc:  # raised outside a command body
-        say(str(exc))
+        say(str(exc), error=True)
         sys.exit(int(_exit_code(exc)))
     except KeyboardInterrupt:  # before a command started
         say("ncopt: interrupted")

@@ -141,7 +141,8 @@ def render_side_by_side(a_name: str, b_name: str, a_lines, b_lines, console: Con
                         header: str = "") -> DiffTotals:
     """Two columns with line numbers; changed words highlighted; unchanged runs folded."""
     t = totals(a_lines, b_lines)
-    console.print(Text(f"{a_name} -> {b_name}: {t.changed} of {t.lines} lines changed "
+    console.print(Text(f"{a_name} -> {b_name}: {t.changed} of {t.lines} "
+                       f"{'line' if t.lines == 1 else 'lines'} changed "
                        f"(S in {t.s_changed}, F in {t.f_changed}){header}", style="bold"))
     width = max((console.width - 14) // 2, 20)
     for row in _rows(a_lines, b_lines):

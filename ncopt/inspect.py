@@ -1,9 +1,11 @@
-"""What ncopt understands of a program before it changes anything."""
+"""What ncopt understands of a program before it changes anything: how it reads it, and
+its operations as ``ncopt rewrite`` would split and judge them (planned, or left and why),
+without planning any."""
 
 from __future__ import annotations
 
 import re
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -15,6 +17,23 @@ from .times import feed_minutes
 from .model import LineKind, Motion, Program
 from .parse import parse_text
 from .tooltable import ToolInfo, tool_table
+
+
+@dataclass(frozen=True)
+class JudgedOperation:
+    """One operation as ``ncopt rewrite`` would split and judge it.
+
+    lines : ``first-last``, 1-based;  time_min : its feed moves at the programmed feed
+    (at most the machine's highest feed), min
+    """
+
+    name: str
+    tool: int
+    lines: str
+    kind: str
+    planned: bool
+    reason: str
+    time_min: float
 
 
 @dataclass(frozen=True)
@@ -44,6 +63,9 @@ class Inspection:
     cut_time_min: float
     kinematics: str | None = None  # what gave the tool axes (5-axis), None: always +Z
     tilt_range_deg: tuple = (0.0, 0.0)  # tool axis from +Z over the readable feed moves
+    unknown_lines: tuple = ()  # (first, last) 1-based runs of the lines of unknown_moves
+    operations: tuple = ()  # JudgedOperation, in program order
+    operations_not_judged: str = ""  # why there are none where the program has moves
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -52,14 +74,17 @@ class Inspection:
 def inspect_text(text: str, path: str = "<input>", *, dialect: str | None = None,
                  decimal_point: str | None = None,
                  kinematics: str | None = None,
-                 max_feed_mm_min: float = float("inf")) -> Inspection:
+                 max_feed_mm_min: float = float("inf"), job=None) -> Inspection:
     """Parse and interpret; raises a located NcoptError when the program is unreadable.
 
     ``dialect`` selects the grammar (None: the generic one) and, with the
     detected dialect when None, whether values need a decimal point
     convention; ``decimal_point`` is that convention (see
     :data:`ncopt.dialect.DECIMAL_POINT_CONVENTIONS`).  A value that depends on
-    an unknown convention is reported among the warnings.
+    an unknown convention is reported among the warnings, and the operations are
+    then not judged (rewrite refuses such a program).  ``job``: an
+    :class:`ncopt.api.Job` whose cutter, cutting data, ``tool`` and ``operations``
+    the judgement follows (None: the cutters of the program's tool comments).
     """
     prog = parse_text(text, path, dialect=dialect)
     found = detect(text)
@@ -95,7 +120,58 @@ def inspect_text(text: str, path: str = "<input>", *, dialect: str | None = None
         f_range_mm_min=(float(f_vals.min()), float(f_vals.max())) if f_vals.size else (0.0, 0.0),
         cut_length_mm=float(length[cut].sum()),
         cut_time_min=float(feed_minutes(tp, None, max_feed_mm_min).sum()),
-        kinematics=tp.kinematics, tilt_range_deg=_tilt_range(tp, feed & known))
+        kinematics=tp.kinematics, tilt_range_deg=_tilt_range(tp, feed & known),
+        unknown_lines=_runs(np.unique(tp.line[1:][~known]) + 1),
+        operations=() if issue else judge_operations(prog, tp, job, max_feed_mm_min),
+        operations_not_judged=(f"{path}: rewrite refuses the program until --decimal-point "
+                               "is given (see the warning)") if issue else "")
+
+
+def judge_operations(prog: Program, tp, job=None,
+                     max_feed_mm_min: float = float("inf")) -> tuple[JudgedOperation, ...]:
+    """The operations as ``ncopt rewrite`` splits and judges them, without planning:
+    :func:`ncopt.plans.plan_program` up to its plans (the same steps in the same order,
+    tests/test_shopfloor_cli.py checks that both agree on real programs).  Raises as the
+    rewrite does (UsageError for --diameter on a program of several tools, ...)."""
+    from . import operations as operations_, plans
+    from .stamp import read_stamps
+
+    if job is None:
+        from .api import Job
+        from .model import Machine
+
+        job = Job(machine=Machine(float("nan"), float("nan")))  # judging needs no spindle
+    stamps = read_stamps(prog)
+    plannable = plans.plannable_points(tp, job.cutting is not None)
+    choices = plans._choices(prog, tp, job, plannable, stamps)
+    diameters = {t: c.cutter.diameter_mm for t, c in choices.items() if c.cutter is not None}
+    found = plans._stamped_ops(prog, tp, stamps) or operations_.find(prog, tp, diameters)
+    ops = plans.decide(found, choices, job, tp, plannable)
+    point_op = plans._point_ops(tp, ops, plannable)
+    for k, op in enumerate(ops):
+        if op.planned:
+            cut, _ = plans._cutting(job, tp, point_op, k, op, choices[op.tool], stamps,
+                                    prog.path)
+            odd = plans.implausible(cut, choices[op.tool].cutter)
+            if odd:
+                ops[k] = replace(op, planned=False, reason=odd)
+    minutes = feed_minutes(tp, None, max_feed_mm_min)
+    out = []
+    for op in ops:
+        a, b = np.searchsorted(tp.line[1:], [op.first_line, op.last_line + 1]) + 1
+        out.append(JudgedOperation(op.name, op.tool, f"{op.first_line + 1}-{op.last_line + 1}",
+                                   op.kind, op.planned, op.reason, float(minutes[a:b].sum())))
+    return tuple(out)
+
+
+def _runs(lines: np.ndarray) -> tuple:
+    """(first, last) of each run of consecutive numbers in sorted ``lines``."""
+    if lines.size == 0:
+        return ()
+    breaks = np.flatnonzero(np.diff(lines) != 1)
+    firsts = np.concatenate(([lines[0]], lines[breaks + 1]))
+    lasts = np.concatenate((lines[breaks], [lines[-1]]))
+    return tuple((int(a), int(b)) for a, b in zip(firsts, lasts))
 
 
 def _tilt_range(tp, moves: np.ndarray) -> tuple:
@@ -108,11 +184,14 @@ def _tilt_range(tp, moves: np.ndarray) -> tuple:
 
 def render_inspection(info: Inspection, out) -> None:
     """The inspection as a few readable lines on a rich console."""
-    say = lambda text: out.print(text, markup=False)  # noqa: E731
-    why = f"{len(info.dialect_marks)} mark{'s' if len(info.dialect_marks) != 1 else ''}"
-    say(f"{info.path}: {info.dialect} dialect ({why}), {info.units}, {info.lines} lines")
+    from .stdio import count, styled
+
+    say = lambda text: out.print(styled(text))  # noqa: E731
+    why = count(len(info.dialect_marks), "mark")
+    say(f"{info.path}: {info.dialect} dialect ({why}), {info.units}, {count(info.lines, 'line')}")
     say(f"  blocks {info.blocks}, moves {info.moves} (feed {info.feed_moves}, rapid "
-        f"{info.rapids}, arcs {info.arcs}), not plannable {info.unknown_moves}")
+        f"{info.rapids}, arcs {info.arcs}), not plannable {info.unknown_moves}"
+        + (f" ({line_runs(info.unknown_lines)})" if info.unknown_lines else ""))
     for t in info.tools:
         say(f"  tool {_name(t[0])}: {_describe_tool(t, info.units)}")
     say(f"  tools cutting: {', '.join(_name(t) for t in info.tools_used) or 'none'}")
@@ -127,9 +206,41 @@ def render_inspection(info: Inspection, out) -> None:
     for line, why in info.opaque[:20]:
         say(f"  line {line}: '{why}' left alone")
     if len(info.opaque) > 20:
-        say(f"  ... {len(info.opaque) - 20} more lines left alone")
+        say(f"  ... {count(len(info.opaque) - 20, 'more line')} left alone")
+    _render_operations(info, say)
     for w in info.warnings[:20]:
         say(f"  warning: {w}")
+
+
+def _render_operations(info: Inspection, say) -> None:
+    """The operations as rewrite would judge them, in the rewrite summary's words."""
+    from .stdio import count
+
+    if info.operations_not_judged:
+        say(f"  operations: not judged: {info.operations_not_judged}")
+        return
+    if not info.operations:
+        return
+    planned = sum(o.planned for o in info.operations)
+    say(f"  operations: {planned} of {count(len(info.operations), 'operation')} would be "
+        "planned (times at the programmed feed):")
+    for o in info.operations:
+        head = f"    {o.name} ({_name(o.tool) if o.tool >= 0 else 'T?'}, lines {o.lines}): "
+        say(head + (f"planned, {o.kind.lower()}, {o.time_min:.1f} min" if o.planned else
+                    f"left as programmed ({o.time_min:.1f} min): {o.reason}"))
+
+
+RUNS_SHOWN = 8  # runs of lines named before "and N more"
+
+
+def line_runs(runs: tuple) -> str:
+    """``line 5``, ``lines 5-9, 12``, ``lines 5-9, ... and 3 more runs``."""
+    from .stdio import count
+
+    shown = ", ".join(f"{a}" if a == b else f"{a}-{b}" for a, b in runs[:RUNS_SHOWN])
+    more = f" and {count(len(runs) - RUNS_SHOWN, 'more run')}" if len(runs) > RUNS_SHOWN else ""
+    single = len(runs) == 1 and runs[0][0] == runs[0][1]
+    return f"{'line' if single else 'lines'} {shown}{more}"
 
 
 def _axes_from(kinematics: str) -> str:
@@ -153,9 +264,11 @@ def _describe_tool(row: tuple, program_units: str) -> str:
     size = f"D{diameter:g}" + ("" if corner is None else f" r{corner:g}")
     where = f"line {line}" + ("" if teeth is None or teeth_line == line
                               else f", teeth line {teeth_line}")
-    count = "teeth not given" if teeth is None else f"{teeth} teeth"
+    from .stdio import count
+
+    teeth_said = "teeth not given" if teeth is None else count(teeth, "tooth", "teeth")
     del number
-    return f"{kind} {size} {unit or program_units}, {count} ({where}, {source})"
+    return f"{kind} {size} {unit or program_units}, {teeth_said} ({where}, {source})"
 
 
 def _units_note(g: np.ndarray, dialect: str) -> str:

@@ -6,6 +6,14 @@ pointed at the null device so that the interpreter's last flush cannot print a
 traceback.  stderr is rich's console, made on first use: importing rich costs startup
 time that ``ncopt --help`` should not pay.  On an interactive stderr, long commands show
 the stage they are in (:func:`stages`).
+
+A listing (``ncopt inspect``, ``ncopt profiles``) whose reader stops early (``| head -1``)
+ends quietly with exit 0 (:func:`listing`): the reader has seen what it wanted.  A program
+written to a pipe that closes is incomplete: that stays a FileError (exit 7).
+
+Colours follow ``--color``: ``auto`` (rich decides: a terminal, and no ``NO_COLOR`` in
+the environment), ``always`` or ``never``.  ``warning:`` prefixes are yellow and an
+error's first line red (:func:`styled`).
 """
 
 from __future__ import annotations
@@ -24,6 +32,27 @@ from .errors import FileError, NcoptError, UsageError
 
 
 _stderr_console = None
+COLOR_MODES = ("auto", "always", "never")
+_color = "auto"
+
+
+def set_color(mode: str) -> None:
+    """``--color``: how the consoles made from now on colour (see the module's doc)."""
+    global _color, _stderr_console
+    if mode not in COLOR_MODES:
+        raise UsageError(f"--color must be one of {', '.join(COLOR_MODES)}, not {mode!r}")
+    _color = mode
+    _stderr_console = None  # the next use makes it with this mode
+
+
+def color_options() -> dict:
+    """rich Console arguments for the ``--color`` mode (none for auto: rich's own rules,
+    NO_COLOR included).  ``always`` wins over NO_COLOR, as an explicit option should."""
+    if _color == "always":
+        return {"color_system": "standard", "no_color": False}
+    if _color == "never":
+        return {"color_system": None}
+    return {}
 
 
 def stderr_console():
@@ -34,7 +63,8 @@ def stderr_console():
     global _stderr_console
     if _stderr_console is None:
         from rich.console import Console
-        _stderr_console = Console(stderr=True, highlight=False, soft_wrap=True)
+        _stderr_console = Console(stderr=True, highlight=False, soft_wrap=True,
+                                  **color_options())
     return _stderr_console
 
 
@@ -76,15 +106,53 @@ def stdout_console(**kwargs):
             self.quiet = True
             raise BrokenPipeError(errno.EPIPE, os.strerror(errno.EPIPE))
 
-    return _Console(**kwargs)
+    return _Console(**{**color_options(), **kwargs})
 
 
-def say(text: str) -> None:
-    """One line on stderr; a closed or broken stderr loses it rather than raising."""
+def count(n: int, noun: str, plural: str | None = None) -> str:
+    """``1 block``, ``2 blocks``; ``plural`` where an added s is wrong (tooth, teeth)."""
+    return f"{n} {noun if n == 1 else plural or noun + 's'}"
+
+
+PREFIX_STYLES = {"warning:": "bold yellow", "error:": "bold red"}
+
+
+def styled(text: str, error: bool = False):
+    """``text`` as rich Text: a ``warning:`` or ``error:`` prefix (after any indent)
+    coloured; with ``error``, its whole first line in red."""
+    from rich.text import Text
+
+    out = Text(text)
+    if error:
+        out.stylize("bold red", 0, len(text.split("\n", 1)[0]))
+        return out
+    body = text.lstrip(" ")
+    for prefix, style in PREFIX_STYLES.items():
+        if body.startswith(prefix):
+            start = len(text) - len(body)
+            out.stylize(style, start, start + len(prefix))
+    return out
+
+
+def say(text: str, error: bool = False) -> None:
+    """One line on stderr, a ``warning:`` prefix coloured (``error``: an error's lines);
+    a closed or broken stderr loses it rather than raising."""
     try:
-        err.print(text, markup=False)
+        err.print(styled(text, error))
     except OSError:
         pass
+
+
+@contextmanager
+def listing() -> Iterator[None]:
+    """Run a listing's output: a reader that closes the pipe early ends it quietly (the
+    caller then exits 0).  Any other write fault (a full disk) is reported as usual."""
+    try:
+        yield
+        if sys.stdout is not None:
+            sys.stdout.flush()
+    except BrokenPipeError:
+        silence_stdout()
 
 
 def read_programs(names: list[str]) -> list[bytes]:
@@ -167,7 +235,7 @@ def command_faults(code_of: Callable[[NcoptError], int], interrupted: int) -> It
 
 
 def _fail(exc: NcoptError, code_of: Callable[[NcoptError], int]) -> None:
-    say(str(exc))
+    say(str(exc), error=True)
     raise typer.Exit(int(code_of(exc)))
 
 
