@@ -278,9 +278,10 @@ def _units_note(g: np.ndarray, dialect: str) -> str:
     if dialect in (SINUMERIK, HEIDENHAIN):  # G70/G700 inch, G71/G710 metric there
         inch = [c for c in (70.0, 700.0) if np.any(g == c)]
         if inch:
-            return (f"G{inch[0]:g} selects inch on this control, but ncopt reads units from "
-                    "G20/G21 only and reads this program in mm: the moves under it are left "
-                    "as programmed until it says G20")
+            return (f"G{inch[0]:g} selects inch for the lengths only on this control (F "
+                    "stays in the machine's basic unit, which the program does not say): the "
+                    "moves under it are left as programmed; G700 selects inch for lengths "
+                    "and F alike, and ncopt reads it")
         if np.isin(g, (71.0, 710.0)).any():
             return ""
     return ("no G20/G21 in the program: ncopt reads it in mm, as a control does that starts "

@@ -71,8 +71,9 @@ G_MODES_NOT_READ = (
     ({121}, {131}, "polar coordinate interpolation (G12.1)"),
     ({71}, set(), "cylindrical interpolation (G07.1)"),
     ({960}, {970}, "constant surface speed (G96): S is a cutting speed, not RPM"),
-    ({700, 7000}, {200, 210, 710, 7100}, "inch selected by G70/G700 (Sinumerik, Heidenhain "
-     "ISO): ncopt reads inch from G20 only"),
+    ({700, 7000}, {200, 210, 710, 7100}, "inch lengths selected by G70 (Sinumerik: F stays "
+     "in the machine's basic unit, which the program does not say; G700 sets both and is "
+     "read) or by a Heidenhain ISO G70"),
 )
 # a Heidenhain ISO program in inch: "%NAME G70 *" on its first line (a tape mark, no words)
 INCH_HEADER = re.compile(r"^\s*%\S+\s+G0*70\s*\*", re.I)

@@ -568,8 +568,8 @@ def choose_cutter(job, table: dict, tool: int, n_tools: int, inch: bool,
         return ToolChoice(None, "", "no diameter known from the program's comments: give "
                           "--diameter (and --corner-radius for a bull-nose)")
     if info.kind not in (BALL, BULL):
-        return ToolChoice(None, "", f"{info.refusal()} ({info.text.strip()}); ncopt plans "
-                          "ball and bull-nose cutters only")
+        return ToolChoice(None, "", f"{info.refusal()} ({info.text.strip()}, line "
+                          f"{info.line}); ncopt plans ball and bull-nose cutters only")
     scale = MM_PER_INCH if inch else 1.0
     teeth = info.teeth or job.teeth
     said = (f"teeth from line {info.teeth_line}" if info.teeth is not None

@@ -142,8 +142,14 @@ def _comment_lines(prog: Program, limit: int) -> list[int]:
 
 
 def _stamp_position(prog: Program) -> int:
-    """After a leading %, %_N_..._MPF, O number or ':' line; else the first line."""
+    """After a leading %, %_N_..._MPF, O number or ':' line (and after the header of blank
+    and comment lines a program may have before its opening %: a stamp above that % is
+    outside the program, where LinuxCNC refuses it); else the first line."""
     i = 0
+    while i < prog.n_lines and prog.line_kind[i] == LineKind.BLANK:
+        i += 1
+    if i >= prog.n_lines or prog.line_kind[i] != LineKind.PERCENT:
+        i = 0  # no opening % after them: the program starts at its first line
     while i < prog.n_lines:
         text = prog.line_text(i).strip()
         words = prog.word_letter[prog.word_line == i]

@@ -185,7 +185,7 @@ def test_simulate_prints_a_summary_that_agrees_with_its_json():
                              f"{data['fz_max_over_pct']:+.2f} % (line ")
     assert third.startswith(f"  vc at most {data['vc_max_over_pct']:+.2f} % of its target "
                             "70.0 m/min (line ")
-    assert third.endswith("; 1 S words")
+    assert third.endswith("; 1 S word")
 
 
 @pytest.mark.parametrize("with_mesh", [False, True], ids=["toolpath", "mesh"])
@@ -322,11 +322,13 @@ def test_inspect_the_sample_bowl():
     assert lines == [
         f"{BOWL_MPF}: sinumerik dialect (1 mark), mm, 21902 lines",
         f"  blocks {info['blocks']}, moves {info['moves']} (feed {info['feed_moves']}, rapid "
-        f"{info['rapids']}, arcs 0), not plannable {info['unknown_moves']}",
+        f"{info['rapids']}, arcs 0), not plannable {info['unknown_moves']} (line 10)",
         "  tool T4: ball D16 r8 mm, 2 teeth (line 4, free text)",
         "  tools cutting: T4",
         "  S 1393..1393 RPM, F 279..279 mm/min",
         f"  cutting {info['cut_length_mm']:.0f} mm in 59.3 min at the programmed feed",
+        "  operations: 1 of 1 operation would be planned (times at the programmed feed):",
+        "    T4 (T4, lines 1-21902): planned, 3d surface finishing, 59.3 min",
         f"  warning: {BOWL_MPF}: no G20/G21 in the program: ncopt reads it in mm, as a control "
         "does that starts in metric; add G21 (or G20) to say which",
     ]
@@ -339,7 +341,8 @@ def test_inspect_json():
     assert set(info) == {"path", "dialect", "dialect_marks", "units", "lines", "blocks",
                          "moves", "feed_moves", "rapids", "arcs", "unknown_moves", "tools",
                          "tools_used", "opaque", "warnings", "s_range_rpm", "f_range_mm_min",
-                         "cut_length_mm", "cut_time_min", "kinematics", "tilt_range_deg"}
+                         "cut_length_mm", "cut_time_min", "kinematics", "tilt_range_deg",
+                         "unknown_lines", "operations", "operations_not_judged"}
     assert info["kinematics"] is None and info["tilt_range_deg"] == [0.0, 0.0]  # 3 axes
     assert info["path"] == str(BOWL_MPF)
     assert (info["dialect"], info["units"], info["lines"]) == ("sinumerik", "mm", 21902)
@@ -588,7 +591,7 @@ def test_profiles_lists_the_shipped_machines(user_toml):
     assert result.exit_code == Exit.OK, result.stderr
     lines = result.stdout.splitlines()
     assert lines[0] == (f"profile files, later ones win (user file: {user_toml}; project file: "
-                        "./ncopt.toml):")
+                        "the nearest ncopt.toml from here up):")
     assert lines[1] == f"  {EXAMPLES}" and not lines[2].startswith("  /")
     assert table_row(result.stdout, "paper-direct-15000") == [
         "paper-direct-15000", "227", "15000", "sinumerik", str(EXAMPLES)]

@@ -49,9 +49,9 @@ def test_no_units_in_the_program_is_said():
 def test_sinumerik_g70_is_inch_that_ncopt_would_not_see():
     text = "%_N_PART_MPF\nG70 S1000 M3\nG1 X1 F100\n"
     assert warnings(text) == [
-        "p.nc: G70 selects inch on this control, but ncopt reads units from G20/G21 only and "
-        "reads this program in mm: the moves under it are left as programmed until it says "
-        "G20"]
+        "p.nc: G70 selects inch for the lengths only on this control (F stays in the "
+        "machine's basic unit, which the program does not say): the moves under it are left "
+        "as programmed; G700 selects inch for lengths and F alike, and ncopt reads it"]
     assert warnings("%_N_PART_MPF\nG71 S1000 M3\nG1 X1 F100\n") == []
 
 

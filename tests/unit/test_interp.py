@@ -416,7 +416,7 @@ def test_inch_by_g70_or_a_heidenhain_header_is_not_read_as_mm(text):
     are left as programmed with the reason."""
     tp = interpret(parse_text(text))
     assert not tp.known[1:].any()
-    assert any("not planned (inch selected by G70/G700" in w for w in tp.warnings)
+    assert any("not planned (inch lengths selected by G70" in w for w in tp.warnings)
 
 
 @pytest.mark.parametrize("block, moves", [("G31 X15 F50", False), ("G27 X0 Y0 Z0", False),
