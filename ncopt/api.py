@@ -116,6 +116,9 @@ class Summary:
     # without a mesh: the share of the planned cut (by length) whose contact the toolpath
     # cannot show, planned at the cutter's full radius (ncopt.contacts.unknown_contact)
     unknown_contact_pct: float = 0.0
+    # 1-based lines of the cutting blocks where the spindle, ramping at its acceleration,
+    # cannot follow the S words written (fz leaves its band): the check simulate makes
+    lag_lines: tuple = ()
     close_s_words: int = 0
     control: str = ""
     control_source: str = ""
@@ -287,7 +290,7 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
                 out = apply_edits(text, edits + ([stamp] if stamp else ()))
                 counts = (len(edits), edits.s_words, edits.f_words)
                 del edits  # ~800k strings at 1M blocks: not kept through the verification's peak
-                lag_warnings = lag.result()
+                lag_warnings, lag_lines = lag.result()
                 masked_input = masked_input.result() if masked_input is not None else None
         if job.verify:
             show("checking the output")
@@ -295,7 +298,8 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
                    masked_input)
         del masked_input
         summary = _summary(prog, tp, idx, work, targets, counts, mesh_edge, job)
-        summary = replace(summary, warnings=summary.warnings + lag_warnings)
+        summary = replace(summary, warnings=summary.warnings + lag_warnings,
+                          lag_lines=lag_lines)
         source = job.control_from if job.control else (
             f"detected from {len(found.marks)} mark{'s' if len(found.marks) > 1 else ''}"
             if found.marks else "no marks: generic")
@@ -593,8 +597,13 @@ def _line_ranges(lines: np.ndarray, shown: int = 3) -> str:
 
 
 def _lag_warnings(prog, tp, idx, work: Work, targets: Targets, job: Job) -> tuple:
-    """The simulator's check on the rewrite: the cutting blocks where the real spindle,
-    ramping at its acceleration toward the S words written, leaves fz out of its band."""
+    """The simulator's check on the rewrite: the moves where the real spindle, ramping at
+    its acceleration toward the S words written, leaves fz out of its band.
+
+    Checked, as simulate checks them: every move of a planned block whose F, at the S
+    commanded for it, means the operation's target fz (within twice the band: a plunge
+    at its own feed per tooth is off target by design, not because the spindle lags).
+    Returns (warnings, 1-based lines)."""
     from .simulate import lagging_blocks
 
     n = tp.n
@@ -607,18 +616,23 @@ def _lag_warnings(prog, tp, idx, work: Work, targets: Targets, job: Job) -> tupl
     rev_block = np.full(idx.first_point.shape[0], np.nan)
     for p in work.plans:
         lo, hi = p.window
-        check = p.blocks.cutting & p.blocks.planned & ~p.reduced & np.isfinite(p.f_mm_min)
-        rev_block[lo:hi][check] = p.cutting.fz_mm * p.cutter.teeth
+        rev_block[lo:hi][p.blocks.planned] = p.cutting.fz_mm * p.cutter.teeth
     rev = np.full(n, np.nan)
     rev[start:] = np.repeat(rev_block, counts)
-    bad = lagging_blocks(prog, tp, s_pt, _feed_after(tp, idx, targets), job.machine, rev,
-                         job.options.fz_tolerance)
+    f_pt = _feed_after(tp, idx, targets)
+    band = job.options.fz_tolerance
+    with np.errstate(divide="ignore", invalid="ignore"):
+        meant = np.abs(np.minimum(f_pt, job.machine.max_feed_mm_min) / (s_pt * rev) - 1.0)
+    rev = np.where(meant <= 2.0 * band, rev, np.nan)
+    bad = lagging_blocks(prog, tp, s_pt, f_pt, job.machine, rev, band)
     if bad.size == 0:
-        return ()
+        return (), ()
     lines = np.unique(tp.line[bad])
-    return (f"{prog.path}:{int(lines[0]) + 1}: the spindle cannot follow the S words at "
-            f"{lines.size} cutting blocks (simulated at its acceleration): fz leaves its "
-            f"+-{100 * job.options.fz_tolerance:g} % band while it catches up",)
+    return ((f"{prog.path}:{int(lines[0]) + 1}: the spindle cannot follow the S words at "
+             f"{lines.size} cutting block{'s' if lines.size > 1 else ''} (lines "
+             f"{_line_ranges(lines)}; simulated at its acceleration): fz leaves its "
+             f"+-{100 * band:g} % band while it catches up",),
+            tuple(int(x) + 1 for x in lines))
 
 
 def _feed_after(tp: Toolpath, idx: planner.BlockIndex, targets: Targets) -> np.ndarray:

@@ -521,7 +521,8 @@ def _runs_one_by_one(w0: np.ndarray, t: np.ndarray, s: np.ndarray, reach: np.nda
 def lagging_blocks(prog: Program, tp: Toolpath, s_rpm: np.ndarray, f_mm_min: np.ndarray,
                    machine: Machine, rev_mm: np.ndarray, band: float) -> np.ndarray:
     """Toolpath points (the moves ending there) where the real spindle, ramping toward the
-    commanded S at its acceleration, leaves fz out of its band at the move's start or end.
+    commanded S at its acceleration, leaves fz out of its band at the move's start or end
+    while it is not at the commanded speed (as :func:`simulate_program` flags a lag).
 
     ``s_rpm``, ``f_mm_min``: (n,) S and F in force per point; ``rev_mm``: (n,) the target
     feed per revolution fz z of each move to check (NaN: not checked).  The same machine model as
@@ -541,10 +542,21 @@ def lagging_blocks(prog: Program, tp: Toolpath, s_rpm: np.ndarray, f_mm_min: np.
     rev = rev_mm[1:]
     check = np.isfinite(rev) & moves.feed & moves.known & (moves.target_rpm > 0)
     speed = moves.speed_mm_min
-    with np.errstate(divide="ignore", invalid="ignore"):
-        lo = speed / np.maximum(end, start) / rev - 1.0
-        hi = speed / np.minimum(end, start) / rev - 1.0
-    bad = check & ((hi > band * (1 + 1e-6) + 1e-9) | (lo < -band * (1 + 1e-6) - 1e-9))
+
+    def out_of_band(real: np.ndarray) -> np.ndarray:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dev = speed / real / rev - 1.0
+        return (dev > band * (1 + 1e-6) + 1e-9) | (dev < -band * (1 + 1e-6) - 1e-9)
+
+    # fz is monotone along a move; while the spindle lags it runs from its value at the
+    # start to its value where the spindle comes within _LAG_RPM of the command (or, if it
+    # never does, to its value at the end)
+    target = moves.target_rpm
+    lags_start = np.abs(start - target) > _LAG_RPM
+    lags_end = np.abs(end - target) > _LAG_RPM
+    near = target + np.sign(start - target) * _LAG_RPM
+    bad = check & lags_start & (out_of_band(start) | np.where(lags_end, out_of_band(end),
+                                                               out_of_band(near)))
     return np.flatnonzero(bad) + 1
 
 

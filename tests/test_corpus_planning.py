@@ -1,6 +1,7 @@
 """Every corpus program ncopt plans, planned as its owner would run it (tools from its own
-comments, the project's bench spindle): a second rewrite changes nothing, and simulate finds
-no place where the spindle cannot follow that rewrite did not name.
+comments, or a D6 ball where it names none; the project's bench spindle): a second rewrite
+changes nothing, and simulate finds no place where the spindle cannot follow that rewrite
+did not name.
 
 The corpus is read in place from ``../shared/corpus``.  Programs ncopt leaves alone (nothing
 to plan, or refused with a located error) are checked elsewhere (tests/test_corpus.py).
@@ -17,7 +18,7 @@ import pytest
 
 from ncopt.api import Job, rewrite_text
 from ncopt.errors import NcoptError, NothingToPlan
-from ncopt.model import Machine
+from ncopt.model import Cutter, Machine
 from ncopt.simulate import simulate_program
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -34,11 +35,26 @@ def _id(p: Path) -> str:
 
 
 @lru_cache(maxsize=None)
+def job_for(path: Path) -> Job:
+    """The tools from the program's comments; where it names none, a D6 ball as its owner
+    would give with --diameter 6."""
+    text = path.read_bytes().decode("latin-1")
+    try:
+        rewrite_text(text, JOB, str(path))
+    except NothingToPlan as exc:
+        if "no diameter known" in str(exc):
+            return replace(JOB, cutter=Cutter(6.0, 2))
+    except NcoptError:
+        pass
+    return JOB
+
+
+@lru_cache(maxsize=None)
 def rewritten(path: Path):
     """(input text, Result) or (input text, None) where ncopt plans nothing."""
     text = path.read_bytes().decode("latin-1")
     try:
-        return text, rewrite_text(text, JOB, str(path))
+        return text, rewrite_text(text, job_for(path), str(path))
     except NothingToPlan:
         return text, None
     except NcoptError:  # refused at a located line: not planned
@@ -57,7 +73,7 @@ def test_a_second_rewrite_is_byte_identical(path):
     if result is None:
         return
     try:
-        again = rewrite_text(result.text, JOB, str(path)).text
+        again = rewrite_text(result.text, job_for(path), str(path)).text
     except NothingToPlan:  # the filter passes it through: nothing changes
         again = result.text
     assert again == result.text
@@ -81,7 +97,8 @@ def test_simulate_finds_no_lag_that_rewrite_did_not_name(path):
     named = set(result.summary.lag_lines)
     back = input_line(result.text)
     for tool in sorted({p.tool for p in result.plans}):
-        job = replace(JOB, tool=tool) if len(result.plans) > 1 else JOB
+        job = job_for(path)
+        job = replace(job, tool=tool) if tool >= 0 else job  # the program may cut with others
         report, _ = simulate_program(result.text, job, path=str(path), sample_mm=0.5)
         missed = [(s.first_line, s.last_line) for s in report.lag
                   if not named & set(range(back(s.first_line), back(s.last_line) + 1))]

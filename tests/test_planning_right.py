@@ -7,6 +7,7 @@ Each case is built from the form a real program uses (quoted in its test).
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -144,3 +145,30 @@ def test_generated_programs_rewrite_idempotently(stepover, plunge_f, cut_f, s, t
     except NothingToPlan:
         twice = once
     assert twice == once
+
+
+def test_rewrite_names_every_place_simulate_finds_the_spindle_lagging():
+    """One spindle check for rewrite and simulate.  A program planned for one spindle and
+    planned again for a slower one (227 -> 131 rad/s^2, 15000 -> 8000 RPM) has places the
+    spindle cannot follow (re-planning from a stamp is not yet right): rewrite names them,
+    and simulate, with the same options, finds none that rewrite did not name."""
+    from dataclasses import replace as with_
+
+    from ncopt.model import Cutter
+
+    bowl = (Path(__file__).resolve().parents[1] / "samples" / "bowl.mpf").read_text("latin-1")
+    job = with_(JOB, cutter=Cutter(16.0, 2))
+    slow = with_(job, machine=Machine(accel_rad_s2=131.0, max_rpm=8000.0))
+    once = rewrite_text(bowl, job, "bowl.mpf").text
+    result = rewrite_text(once, slow, "b1.mpf")
+    named = set(result.summary.lag_lines)
+    assert len(named) > 100
+    [warning] = [w for w in result.summary.warnings if "cannot follow" in w]
+    assert warning.startswith(f"b1.mpf:{min(named)}: the spindle cannot follow the S words at "
+                              f"{len(named)} cutting blocks (lines {min(named)}")
+    report, _ = simulate_program(result.text, slow, path="b2.mpf", sample_mm=0.5)
+    assert len(report.lag) > 100
+    # the input already had its stamp, which the rewrite replaced in place: the same lines
+    assert len(result.text.splitlines()) == len(once.splitlines())
+    missed = [s for s in report.lag if not named & set(range(s.first_line, s.last_line + 1))]
+    assert not missed, missed[:3]
