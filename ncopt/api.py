@@ -32,7 +32,7 @@ from .pathnormals import NO_CROSS, ONE_SIDED
 from .plans import OpPlan, Work, plan_program
 from .regions import Scope
 from .rewrite import F_CODE, S_CODE, Targets, apply_edits, detect_style, masked, plan_edits
-from .stamp import read_stamps, stamp_edit
+from .stamp import StampInfo, read_stamps, stamp_edit
 from .times import feed_minutes, untimed_moves
 
 MM_PER_INCH = 25.4
@@ -67,6 +67,7 @@ class Job:
     diameter_bare: bool = False  # --diameter was a bare number (read as mm)
     shape_named: bool = False  # the user named the cutter's shape (not --diameter alone)
     kinematics: str | None = None  # 5-axis: how rotary angles tilt the tool (ncopt.kinematics)
+    machine_name: str | None = None  # the machine profile the spindle comes from (the stamp)
 
 
 ToolPlan = OpPlan  # the plan of one operation (one tool in ncopt 0.1)
@@ -285,7 +286,8 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
                 masked_input = pool.submit(_masked_input, prog) if job.verify else None
                 edits = plan_edits(prog, consumers, s_style, f_style, work.scope.editable,
                                    rapid_lines(tp, prog.n_lines))
-                stamp = (stamp_edit(prog, work.plans, 100.0 * job.options.fz_tolerance)
+                stamp = (stamp_edit(prog, work.plans, 100.0 * job.options.fz_tolerance,
+                                    _stamp_info(path, job, tp, idx, targets))
                          if job.stamp else None)
                 out = apply_edits(text, edits + ([stamp] if stamp else ()))
                 counts = (len(edits), edits.s_words, edits.f_words)
@@ -428,6 +430,27 @@ def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_s
                                 prog.path, line)
 
 
+def _stamp_info(path: str, job: Job, tp: Toolpath, idx: planner.BlockIndex,
+                targets: Targets) -> StampInfo:
+    """The stamp's header: today (or SOURCE_DATE_EPOCH's day, for reproducible outputs),
+    the program's file name, the machine, and the whole program's estimated cutting time
+    before and after (as the summary gives it)."""
+    import datetime
+    import os
+
+    epoch = os.environ.get("SOURCE_DATE_EPOCH", "")
+    day = (datetime.datetime.fromtimestamp(int(epoch), datetime.timezone.utc).date()
+           if epoch.isdigit() else datetime.date.today())
+    m = job.machine
+    spindle = f"{m.accel_rad_s2:g} rad/s2, {m.max_rpm:g} RPM"
+    machine = f"{job.machine_name}: {spindle}" if job.machine_name else spindle
+    cap = m.max_feed_mm_min
+    before = float(feed_minutes(tp, None, cap).sum())
+    after = float(feed_minutes(tp, _feed_after(tp, idx, targets), cap).sum())
+    source = "stdin" if path in ("-", "<stdin>", "<input>") else Path(path).name
+    return StampInfo(day.isoformat(), source, machine, before, after)
+
+
 def rapid_lines(tp: Toolpath, n_lines: int) -> np.ndarray:
     """(n_lines,) bool: the lines that move at the rapid rate (G0): their F words are the
     program's, never rewritten."""
@@ -438,8 +461,8 @@ def rapid_lines(tp: Toolpath, n_lines: int) -> np.ndarray:
 
 
 def _stamp_lines(prog: Program) -> list:
-    """0-based lines of the program's ncopt stamps, in order."""
-    return sorted(st.line for st in read_stamps(prog).values())
+    """0-based lines of the program's ncopt stamp, in order (its header lines too)."""
+    return sorted(read_stamps(prog).lines)
 
 
 def _masked_input(prog: Program) -> str:

@@ -26,6 +26,8 @@ from typing import Iterator, TextIO
 from rich.console import Console
 from rich.text import Text
 
+from .stamp import STAMP_LINE
+
 _TOKEN = re.compile(r"\s+|\([^)]*\)|;.*|[A-Za-z]\s*[-+]?[\d.]+|.")
 CONTEXT = 1
 
@@ -54,7 +56,7 @@ def changed_words(a: str, b: str) -> tuple[list[tuple[str, bool]], list[tuple[st
 
 
 def totals(a_lines: list[str], b_lines: list[str]) -> DiffTotals:
-    """Changed lines counted on the same pairing the view shows (a stamp is one line)."""
+    """Changed lines counted on the same pairing the view shows (a stamp line is one line)."""
     changed = s = f = 0
     for row in _rows(a_lines, b_lines):
         if row[0] != "change":
@@ -68,7 +70,7 @@ def totals(a_lines: list[str], b_lines: list[str]) -> DiffTotals:
     return DiffTotals(max(len(a_lines), len(b_lines)), changed, s, f)
 
 
-_STAMP = re.compile(r"^\s*(?:\(|;)\s*ncopt \S+ T-?\d+ (?:lines=\d+-\d+ )?vc=")  # 0.1 and later
+_STAMP = STAMP_LINE  # every line of a stamp, of any ncopt version
 
 
 def _rows(a_lines: list[str], b_lines: list[str]) -> Iterator[tuple]:

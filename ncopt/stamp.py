@@ -18,16 +18,41 @@ import numpy as np
 from . import __version__
 from .model import Cutter, CuttingData, Edit, LineKind, Program
 
-# ``(ncopt 0.2.0 T4 lines=15-3800 vc=70.0198 fz=0.100144 D=16mm r=8mm z=2 band=2 ...)``:
-# the lines of the planned operation are numbered as in the program without the stamp
-# lines; lengths are always mm (the unit is written out, whatever the program's units).
-# lines= and the units are absent from stamps of ncopt 0.1, which hold one tool each.
-_STAMP = re.compile(r"^\s*(?:\(|;)\s*ncopt (?P<version>\S+) T(?P<tool>-?\d+)"
-                    r"(?: lines=(?P<a>\d+)-(?P<b>\d+))? "
-                    r"vc=(?P<vc>[\d.]+) fz=(?P<fz>[\d.]+) D=(?P<d>[\d.]+)(?:mm)? "
-                    r"r=(?P<r>[\d.]+)(?:mm)? z=(?P<z>\d+)(?P<rest>[^)]*)\)?\s*$")
+# The stamp, in the program's comment syntax, every line at most STAMP_WIDTH characters:
+#
+#   (ncopt 0.1.0 2026-11-27: S and F for constant vc and fz)
+#   (ncopt from bowl.mpf)
+#   (ncopt machine paper-direct-15000: 227 rad/s2, 15000 RPM)
+#   (ncopt cutting time 59.3 -> 28.7 min, estimated)
+#   (ncopt T4 lines=1-21902 vc=70.0198 fz=0.100144 band=2)
+#   (ncopt T4 D=16mm r=8mm z=2 S0=1393 F0=279mm/min)
+#
+# two lines per planned operation (T? where the program names no tool); its lines are
+# numbered as in the program without the stamp lines; lengths are always mm.  A re-run
+# that plans the same keeps the stamp as it is (its date and source included).  Stamps
+# of ncopt before this form are one line per operation (or per tool, ncopt 0.1) and are
+# still read: ``(ncopt 0.2.0 T4 lines=15-3800 vc=70.0198 fz=0.100144 D=16mm r=8mm z=2 ...)``.
+STAMP_WIDTH = 72
+# the text of any stamp line, either form, after its "(" or ";": ncopt's own data, never a
+# tool description or a line of the program (ncopt.tooltable, ncopt.diffview)
+STAMP_BODY = (r"ncopt (?:\S+ T-?\d+ (?:lines=\d+-\d+ )?vc=|T(?:-?\d+|\?) |"
+              r"\d\S* \d{4}-\d\d-\d\d: |from |machine |cutting time )")
+STAMP_LINE = re.compile(r"^\s*(?:\(|;)\s*" + STAMP_BODY)
+_OLD = re.compile(r"^\s*(?:\(|;)\s*ncopt (?P<version>\S+) T(?P<tool>-?\d+)"
+                  r"(?: lines=(?P<a>\d+)-(?P<b>\d+))? "
+                  r"vc=(?P<vc>[\d.]+) fz=(?P<fz>[\d.]+) D=(?P<d>[\d.]+)(?:mm)? "
+                  r"r=(?P<r>[\d.]+)(?:mm)? z=(?P<z>\d+)(?P<rest>[^)]*)\)?\s*$")
 _BAND = re.compile(r"\bband=(?P<band>[\d.]+)")
 _INTENT = re.compile(r"\bS0=(?P<s0>[\d.]+) F0=(?P<f0>[\d.]+)")
+_OP_A = re.compile(r"^\s*(?:\(|;)\s*ncopt T(?P<tool>-?\d+|\?) lines=(?P<a>\d+)-(?P<b>\d+) "
+                   r"vc=(?P<vc>[\d.]+) fz=(?P<fz>[\d.]+)(?: band=(?P<band>[\d.]+))?\s*\)?\s*$")
+_OP_B = re.compile(r"^\s*(?:\(|;)\s*ncopt T(?P<tool>-?\d+|\?) D=(?P<d>[\d.]+)mm "
+                   r"r=(?P<r>[\d.]+)mm z=(?P<z>\d+)(?: S0=(?P<s0>[\d.]+) "
+                   r"F0=(?P<f0>[\d.]+)mm/min)?\s*\)?\s*$")
+_INFO = re.compile(r"^\s*(?:\(|;)\s*ncopt (?:\d\S* \d{4}-\d\d-\d\d: |from |machine |"
+                   r"cutting time )")
+_FROM = re.compile(r"^\s*(?:\(|;)\s*ncopt from ")
+_MACHINE = re.compile(r"^\s*(?:\(|;)\s*ncopt machine ")
 
 
 @dataclass(frozen=True)
@@ -42,30 +67,77 @@ class Stamp:
     tool: int
     cutting: CuttingData
     cutter: Cutter
-    line: int  # 0-based
+    line: int  # 0-based, its first line
     lines: tuple | None = None
     band_pct: float | None = None
     s0_rpm: float = 0.0  # the operation's own S and cutting feed before ncopt (0: not stamped)
     f0_mm_min: float = 0.0
 
 
-def read_stamps(prog: Program) -> dict[tuple, Stamp]:
+class Stamps(dict):
+    """The stamps of a program by (tool, (first, last) lines or None); ``lines``: every
+    0-based line of the stamp block (its header lines too), sorted."""
+
+    lines: list = []
+
+
+@dataclass(frozen=True)
+class StampInfo:
+    """What the stamp's header says besides the plans: the date (ISO), the program it was
+    planned from, the machine (a profile's name and its spindle) and the estimated whole
+    program cutting time before and after, minutes."""
+
+    date: str
+    source: str
+    machine: str
+    time_before_min: float
+    time_after_min: float
+
+
+def read_stamps(prog: Program) -> Stamps:
     """The stamps in a program, by (tool, (first, last) lines or None)."""
-    found: dict[tuple, Stamp] = {}
+    found = Stamps()
+    found.lines = []
+    pending = None  # (line, match of _OP_A) waiting for its second line
     for line in _comment_lines(prog, limit=400):
-        m = _STAMP.match(prog.line_text(line))
+        text = prog.line_text(line)
+        m = _OLD.match(text)
         if m:
-            tool = int(m.group("tool"))
-            op = (int(m.group("a")), int(m.group("b"))) if m.group("a") is not None else None
-            band = _BAND.search(m.group("rest") or "")
-            intent = _INTENT.search(m.group("rest") or "")
-            found[(tool, op)] = Stamp(
-                tool, CuttingData(float(m.group("vc")), float(m.group("fz"))),
-                Cutter(float(m.group("d")), int(m.group("z")), float(m.group("r"))), line, op,
-                float(band.group("band")) if band else None,
-                float(intent.group("s0")) if intent else 0.0,
-                float(intent.group("f0")) if intent else 0.0)
+            found.lines.append(line)
+            _add(found, line, _tool(m), _op(m), m["vc"], m["fz"], m["d"], m["r"], m["z"],
+                 _BAND.search(m["rest"] or ""), _INTENT.search(m["rest"] or ""))
+            continue
+        a = _OP_A.match(text)
+        if a:
+            found.lines.append(line)
+            pending = (line, a)
+            continue
+        b = _OP_B.match(text)
+        if b and pending is not None and _tool(b) == _tool(pending[1]):
+            found.lines.append(line)
+            at, a = pending
+            _add(found, at, _tool(a), _op(a), a["vc"], a["fz"], b["d"], b["r"], b["z"],
+                 a if a["band"] else None, b if b["s0"] else None)
+            pending = None
+            continue
+        if _INFO.match(text):
+            found.lines.append(line)
     return found
+
+
+def _tool(m) -> int:
+    return -1 if m["tool"] == "?" else int(m["tool"])
+
+
+def _op(m) -> tuple | None:
+    return (int(m["a"]), int(m["b"])) if m["a"] is not None else None
+
+
+def _add(found, line, tool, op, vc, fz, d, r, z, band, intent) -> None:
+    found[(tool, op)] = Stamp(
+        tool, CuttingData(float(vc), float(fz)), Cutter(float(d), int(z), float(r)), line, op,
+        float(band["band"]) if band else None,
+        float(intent["s0"]) if intent else 0.0, float(intent["f0"]) if intent else 0.0)
 
 
 def stamp_for(stamps: dict[tuple, Stamp], tool: int, lines: tuple) -> Stamp | None:
@@ -74,17 +146,23 @@ def stamp_for(stamps: dict[tuple, Stamp], tool: int, lines: tuple) -> Stamp | No
     return stamps.get((tool, lines)) or stamps.get((tool, None))
 
 
+def _stamp_block(stamps) -> list:
+    return list(stamps.lines) if isinstance(stamps, Stamps) else [
+        st.line for st in stamps.values()]
+
+
 def unstamped_line(stamps: dict[tuple, Stamp], line: int) -> int:
     """1-based number of 0-based ``line`` in the program without its stamp lines."""
-    return line + 1 - sum(1 for st in stamps.values() if st.line < line)
+    return line + 1 - sum(1 for at in _stamp_block(stamps) if at < line)
 
 
 def stamped_line(stamps: dict[tuple, Stamp], number: int) -> int:
     """0-based line of the 1-based ``number`` of the program without its stamp lines."""
-    first = min((st.line for st in stamps.values()), default=None)
+    block = _stamp_block(stamps)
+    first = min(block, default=None)
     if first is None or number - 1 < first:
         return number - 1
-    return number - 1 + len({st.line for st in stamps.values()})
+    return number - 1 + len(set(block))
 
 
 def as_stamped(cut: CuttingData) -> CuttingData:
@@ -101,37 +179,90 @@ def vc_text(vc_m_min: float) -> str:
     return short if float(short) == vc_m_min else f"{vc_m_min:.10g}"
 
 
-def stamp_lines(plans, semicolon: bool, band_pct: float | None = None) -> list[str]:
-    """One stamp comment per planned operation (lengths in mm, whatever the program's
-    units); ``p.lines``: its (first, last) lines, numbered without stamp lines."""
-    out = []
+def _plan_lines(plans, band_pct: float | None) -> list[str]:
+    """Two lines per planned operation (``p.lines``: its (first, last) lines, numbered
+    without stamp lines); lengths in mm, whatever the program's units."""
     band = f" band={band_pct:g}" if band_pct is not None else ""
+    out = []
     for p in plans:
-        body = (f"ncopt {__version__} T{p.tool} lines={p.lines[0]}-{p.lines[1]} "
-                f"vc={vc_text(p.cutting.vc_m_min)} "
-                f"fz={p.cutting.fz_mm:.6f} D={p.cutter.diameter_mm:g}mm "
-                f"r={p.cutter.corner_radius_mm:g}mm z={p.cutter.teeth}{band} "
-                f"S0={p.s0_rpm:.10g} F0={p.cutting_feed_mm_min:.10g}mm/min "
-                "- S and F for constant vc and fz")
-        out.append(f"; {body}" if semicolon else f"({body})")
+        t = f"T{p.tool}" if p.tool >= 0 else "T?"
+        out.append(f"ncopt {t} lines={p.lines[0]}-{p.lines[1]} "
+                   f"vc={vc_text(p.cutting.vc_m_min)} fz={p.cutting.fz_mm:.6f}{band}")
+        # the operation's own S and cutting feed, where the program gives them (a program
+        # without S words, planned from --vc and --fz, has none)
+        s0, f0 = p.s0_rpm, p.cutting_feed_mm_min
+        own = f" S0={s0:.10g} F0={f0:.10g}mm/min" if s0 > 0 and f0 > 0 and f0 < 1e12 else ""
+        out.append(f"ncopt {t} D={p.cutter.diameter_mm:g}mm r={p.cutter.corner_radius_mm:g}mm "
+                   f"z={p.cutter.teeth}{own}")
     return out
 
 
-def stamp_edit(prog: Program, plans, band_pct: float | None = None) -> Edit | None:
-    """Insert the stamp, or replace an existing one (None when it is already right)."""
+def _info_lines(info: StampInfo | None, source_line: str | None) -> list[str]:
+    if info is None:
+        return []
+    room = STAMP_WIDTH - 2 - len("ncopt from ")
+    source = _safe(info.source)
+    source = source if len(source) <= room else "..." + source[-(room - 3):]
+    return [f"ncopt {__version__} {info.date}: S and F for constant vc and fz",
+            source_line or f"ncopt from {source}",
+            _fit(f"ncopt machine {_safe(info.machine)}"),
+            f"ncopt cutting time {info.time_before_min:.1f} -> {info.time_after_min:.1f} min, "
+            "estimated"]
+
+
+def _safe(text: str) -> str:
+    """Text a comment can hold on any control: no parentheses or semicolons, ASCII."""
+    text = text.encode("ascii", "replace").decode("ascii")
+    return re.sub(r"[()\[\];\r\n]", "_", text)
+
+
+def _fit(text: str) -> str:
+    room = STAMP_WIDTH - 2
+    return text if len(text) <= room else text[:room - 3] + "..."
+
+
+def stamp_lines(plans, semicolon: bool, band_pct: float | None = None,
+                info: StampInfo | None = None, source_line: str | None = None) -> list[str]:
+    """The stamp's comment lines: the header (``info``; ``source_line``: an earlier stamp's
+    "from" line, kept), then two lines per planned operation."""
+    body = _info_lines(info, source_line) + _plan_lines(plans, band_pct)
+    return [f"; {b}" if semicolon else f"({b})" for b in body]
+
+
+def stamp_edit(prog: Program, plans, band_pct: float | None = None,
+               info: StampInfo | None = None) -> Edit | None:
+    """Insert the stamp, or replace an existing one (None when it plans the same: its
+    date and source then stay as they are)."""
     semicolon = _uses_semicolons(prog)
     nl = prog.newline
-    text = nl.join(stamp_lines(plans, semicolon, band_pct)) + nl
-    old = sorted(s.line for s in read_stamps(prog).values())
+    old = read_stamps(prog).lines
     if old:
         start, end = int(prog.line_start[old[0]]), int(prog.line_start[old[-1] + 1])
-        if prog.text[start:end] == text:
-            return None
+        present = prog.text[start:end].splitlines()
+        # the plan and the machine it was made for: the same, the stamp stays (a re-run's
+        # times "before" are the planned program's own, its date and file name today's)
+        now = [f"; {b}" if semicolon else f"({b})" for b in _plan_lines(plans, band_pct)
+               + _info_lines(info, None)[2:3]]
+        kept = [ln for ln in present if _OP_A.match(ln) or _OP_B.match(ln) or _MACHINE.match(ln)]
+        if info is None or (kept == now[-1:] + now[:-1] and any(_INFO.match(ln) for ln in present)):
+            text = nl.join(stamp_lines(plans, semicolon, band_pct, info)) + nl
+            if info is not None or prog.text[start:end] == text:
+                return None  # it plans the same: the stamp stays, its date and source too
+            return Edit(start, end, text)
+        source = next((_body(ln) for ln in present if _FROM.match(ln)), None)
+        text = nl.join(stamp_lines(plans, semicolon, band_pct, info, source)) + nl
         return Edit(start, end, text)
+    text = nl.join(stamp_lines(plans, semicolon, band_pct, info)) + nl
     at = int(prog.line_start[_stamp_position(prog)])
     if at == len(prog.text) and prog.text and not prog.text.endswith("\n"):
         text = nl + text
     return Edit(at, at, text)
+
+
+def _body(line: str) -> str:
+    """A comment line's text without its ``( )`` or ``;``."""
+    text = line.strip()
+    return text[1:-1].strip() if text.startswith("(") else text[1:].strip()
 
 
 def _comment_lines(prog: Program, limit: int) -> list[int]:

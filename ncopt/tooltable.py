@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .model import Cutter, LineKind, Program
+from .stamp import STAMP_BODY
 from .toolcomments import (BALL, BULL, BULL_NO_RADIUS, FLAT, OTHER, UNKNOWN, Fact,
                            may_describe_a_tool, read_comment, shape)
 
@@ -145,7 +146,8 @@ def _info(desc: _Described, number: int | None) -> ToolInfo | None:
 _COMMENT_IN_TEXT = re.compile(r"\(([^()\r\n]*)\)|;([^\r\n]*)")
 # ncopt's own stamp (ncopt.stamp) names the cutter in mm whatever the program's units;
 # the planner reads it there, never as a tool comment
-_NCOPT_STAMP = re.compile(r"\s*ncopt \S+ T-?\d+ (?:lines=\d+-\d+ )?vc=")
+# the lines of an ncopt stamp: its own data, never a tool description
+_NCOPT_STAMP = re.compile(r"\s*" + STAMP_BODY)
 
 
 def tool_comments(prog: Program) -> list[ToolInfo]:

@@ -35,7 +35,7 @@ SUFFIXES = {".nc", ".ngc", ".tap", ".gcode"}
 OPTIONS = ["--diameter", "3", "--accel", "227", "--max-rpm", "15000"]
 TMP_SUFFIX = ".ncopt-tmp"
 BATCH_BUDGET_S = 40.0
-STAMP = re.compile(r"^\s*[(;]\s*ncopt \S+ T-?\d+ (?:lines=\d+-\d+ )?vc=")
+STAMP = re.compile(r"^\s*[(;]\s*ncopt ")  # a line of the stamp
 LOCATED = re.compile(r"line (\d+)(?::(\d+))?: \S")
 
 
@@ -75,12 +75,14 @@ BROKEN = {
 
 
 def without_stamp(base: str, longer: str) -> str:
-    """``longer`` minus the one stamp comment line a rewrite adds near the top."""
+    """``longer`` minus the block of stamp comment lines a rewrite adds near the top (four
+    of header, two per planned operation)."""
     a, b = base.splitlines(keepends=True), longer.splitlines(keepends=True)
-    assert len(b) == len(a) + 1
+    n = len(b) - len(a)
+    assert n >= 6 and n % 2 == 0, n
     i = next((k for k, (x, y) in enumerate(zip(a, b)) if x != y), len(a))
-    assert STAMP.match(b[i]), b[i]
-    return "".join(b[:i] + b[i + 1:])
+    assert all(STAMP.match(line) for line in b[i:i + n]), b[i:i + n]
+    return "".join(b[:i] + b[i + n:])
 
 
 # --------------------------------------------------- the whole corpus, once ----

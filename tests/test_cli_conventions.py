@@ -187,7 +187,7 @@ def test_diff_pairs_a_stamped_rewrite_line_by_line(pair, monkeypatch):
     prog, opt = pair
     a = prog.read_text().splitlines()
     b = opt.read_text().splitlines()
-    stamps = [i for i, line in enumerate(b[:5]) if line.startswith("(ncopt ")]
+    stamps = [i for i, line in enumerate(b[:10]) if line.startswith("(ncopt ")]
     assert stamps and len(b) == len(a) + len(stamps)
     rows = list(_rows(a, b))
     assert [r[:2] for r in rows[:len(stamps)]] == [("change", None)] * len(stamps)

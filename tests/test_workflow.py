@@ -41,7 +41,8 @@ FAST = ["--sample", "1.0"]
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 SIM_KEYS = {"cutting_time_min", "rapid_time_min", "fz_in_band_pct", "fz_max_over_pct",
             "vc_max_over_pct", "max_rpm", "s_words"}
-STAMP = re.compile(r"^\s*[(;]\s*ncopt \S+ T-?\d+ (?:lines=\d+-\d+ )?vc=")
+STAMP = re.compile(r"^\s*[(;]\s*ncopt ")  # a line of the stamp
+STAMPED = 6  # stamp lines of a one-operation rewrite: four of header, two of its data
 
 
 # ------------------------------------------------------------------ helpers ----
@@ -457,7 +458,7 @@ def test_diff_of_a_rewrite_is_a_unified_diff_of_s_and_f_words(bowl_opt):
     b = opt.read_bytes().decode("latin-1").splitlines()
     assert apply_unified(a, out) == b  # the diff is complete and correct
     # every hunk pairs removed and added lines one for one, differing in S and F only;
-    # the one line added on its own is the stamp comment
+    # the lines added on their own are the stamp's
     hunks, added_alone = [], []
     for line in out[2:]:
         if line.startswith("@@ "):
@@ -473,7 +474,7 @@ def test_diff_of_a_rewrite_is_a_unified_diff_of_s_and_f_words(bowl_opt):
         for x, y in zip(minus, plus):
             assert x != y and strip_sf(x) == strip_sf(y), (x, y)
         changed += len(minus)
-    assert len(added_alone) == 1 and added_alone[0] == b[0]
+    assert added_alone == b[:STAMPED]
     assert changed > 15000
 
 
@@ -521,7 +522,7 @@ def test_side_by_side_folds_unchanged_runs_with_line_numbers(bowl_opt):
     """Two programs with the same lines (the rewrite without its stamp)."""
     _, opt = bowl_opt
     a = bowl_lines()[:400]
-    b = opt.read_bytes().decode("latin-1").splitlines()[1:401]
+    b = opt.read_bytes().decode("latin-1").splitlines()[STAMPED:STAMPED + 400]
     totals, lines = side_by_side(a, b)
     assert max(cell_len(line) for line in lines) <= 100
     changed = [i + 1 for i in range(400) if a[i] != b[i]]
@@ -544,30 +545,30 @@ def test_side_by_side_folds_unchanged_runs_with_line_numbers(bowl_opt):
 def test_side_by_side_of_a_rewrite_with_its_stamp(bowl_opt):
     _, opt = bowl_opt
     a = bowl_lines()[:400]
-    b = opt.read_bytes().decode("latin-1").splitlines()[:401]
+    b = opt.read_bytes().decode("latin-1").splitlines()[:STAMPED + 400]
     _, lines = side_by_side(a, b)
     assert max(cell_len(line) for line in lines) <= 100
     folds, rows = parse_rows(lines[1:])
-    # the stamp first, an added line: no number on the left, cut to the column on the right
-    n, left, sep, right = rows[0]
-    assert (n, left, sep) == (None, "", "┃")
-    assert right.endswith("…") and b[0].startswith(right[:-1])
-    numbers = [r[0] for r in rows[1:]]
+    # the stamp first, added lines: no number on the left, cut to the column on the right
+    for k, (n, left, sep, right) in enumerate(rows[:STAMPED]):
+        assert (n, left, sep) == (None, "", "┃")
+        assert right == b[k] or (right.endswith("…") and b[k].startswith(right[:-1]))
+    numbers = [r[0] for r in rows[STAMPED:]]
     assert None not in numbers and numbers == sorted(set(numbers))
     assert sum(folds) + len(numbers) == 400
-    for n, left, sep, right in rows[1:]:  # the original's own line numbers
-        assert left == a[n - 1] and right == b[n]
+    for n, left, sep, right in rows[STAMPED:]:  # the original's own line numbers
+        assert left == a[n - 1] and right == b[n - 1 + STAMPED]
     assert any(FOLD.match(line) for line in lines)
 
 
 def test_side_by_side_header_counts_the_changed_lines_of_a_rewrite(bowl_opt):
-    """The header counts lines by position: after the stamp every line is one off, so
-    '401 of 401 lines changed' although most are folded as unchanged below it."""
+    """The header counts the changed lines on the pairing it shows: the stamp's lines and
+    the rewritten ones (most others are folded as unchanged)."""
     _, opt = bowl_opt
     a = bowl_lines()[:400]
-    b = opt.read_bytes().decode("latin-1").splitlines()[:401]
+    b = opt.read_bytes().decode("latin-1").splitlines()[:STAMPED + 400]
     totals, lines = side_by_side(a, b)
-    changed = 1 + sum(x != y for x, y in zip(a, b[1:]))  # the stamp and the rewritten lines
+    changed = STAMPED + sum(x != y for x, y in zip(a, b[STAMPED:]))
     assert changed < len(b)  # some lines are folded as unchanged
     assert totals.changed == changed, lines[0]
     assert lines[0].startswith(f"bowl.mpf -> bowl_opt.mpf: {changed} of ")
@@ -680,8 +681,12 @@ def test_rewrite_with_the_shipped_profiles(bowl_opt):
     assert "ncopt: vc 70.0 m/min, fz 0.1000 mm, highest S 15000 RPM" in lines
     assert any(line.startswith("ncopt: sinumerik control: ") for line in lines)
     text = out.read_bytes().decode("latin-1")
-    assert re.match(r"; ncopt \S+ T4 lines=1-21902 vc=70\.0+ fz=0\.10+ D=16mm r=8mm z=2 band=2 "
-                    r"S0=1393 F0=279mm/min ", text)
+    assert re.match(r"; ncopt \S+ \d{4}-\d\d-\d\d: S and F for constant vc and fz\n"
+                    r"; ncopt from bowl.mpf\n"
+                    r"; ncopt machine paper-direct-15000: 227 rad/s2, 15000 RPM\n"
+                    r"; ncopt cutting time 59\.3 -> \d+\.\d min, estimated\n"
+                    r"; ncopt T4 lines=1-21902 vc=70\.0+ fz=0\.10+ band=2\n"
+                    r"; ncopt T4 D=16mm r=8mm z=2 S0=1393 F0=279mm/min\n", text)
     prog = parse_text(text)
     s = prog.word_value[prog.word_letter == ord("S")]
     assert s.max() == 15000 and s.size > 10000
@@ -757,7 +762,8 @@ def test_version_is_the_package_version_and_the_stamps(flat, tmp_path):
     assert pyproject["project"]["version"] == ncopt.__version__
     out = tmp_path / "out.nc"
     assert invoke(["rewrite", flat, "--diameter", "16", *SPINDLE, "-o", out, "-q"]).exit_code == 0
-    assert out.read_text().startswith(f"(ncopt {ncopt.__version__} T4 lines=1-")
+    assert re.match(rf"\(ncopt {re.escape(ncopt.__version__)} \d{{4}}-\d\d-\d\d: .*\)\n",
+                    out.read_text())
 
 
 # ---------------------------------------------------------------- exit codes ----

@@ -32,6 +32,8 @@ ROOT = HERE.parents[1]
 MESHES = HERE / "meshes"
 CASES = HERE / "cases"
 
+# the stamp's date, fixed (2026-01-01) so that the expected outputs stay the same every day
+ENV = {"SOURCE_DATE_EPOCH": "1767225600"}
 DOME_R, DOME_CZ = 40.0, -28.0
 RIDGE_R, RIDGE_CZ = 30.0, -20.0
 
@@ -181,7 +183,8 @@ def write_expected() -> None:
         args = [str((folder / a).resolve()) if i and args[i - 1] == "--mesh" else a
                 for i, a in enumerate(args)]
         out = folder / f"expected{src.suffix}"
-        result = CliRunner().invoke(app, ["rewrite", str(src), *args, "-o", str(out), "-q"])
+        result = CliRunner(env=ENV).invoke(app, ["rewrite", str(src), *args, "-o", str(out),
+                                                 "-q"])
         if result.exit_code != 0:
             raise SystemExit(f"{folder.name}: exit {result.exit_code}: {result.stderr}")
         print(f"wrote {out.relative_to(ROOT)}")

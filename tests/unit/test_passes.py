@@ -164,7 +164,7 @@ def test_a_program_gets_one_s_word_per_pass_off_the_cut(bowl_passes):
     out = parse_text(result.text)
     s_lines = out.word_line[out.word_letter == ord("S")]
     cutting_lines = set((plan.blocks.cutting.nonzero()[0]).tolist())
-    block_of_line = {int(line) + 1: b for b, line in enumerate(result.block_index.line)}  # +1: stamp
+    block_of_line = {int(line) + 6: b for b, line in enumerate(result.block_index.line)}  # the stamp
     assert all(block_of_line.get(int(line)) not in cutting_lines for line in s_lines)
     assert len(s_lines) <= 5  # at most one per pass (the first on the M3 line)
     speeds = [plan.s_cmd_rpm[passes.pass_ids(plan.blocks) == p][0] for p in range(5)]

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 from dataclasses import replace
 
 import numpy as np
@@ -314,15 +316,27 @@ def test_rewrite_twice_is_stable(mb, bowl_index):
 
 # ------------------------------------------------------------------ the stamp ----
 @pytest.mark.parametrize("tape, comment", [(True, "("), (False, "(")])
-def test_stamp_is_one_comment_line_after_the_tape_header(mb, bowl_index, tape, comment):
+def test_stamp_is_a_block_of_short_comment_lines_after_the_tape_header(mb, bowl_index, tape,
+                                                                        comment):
+    """Four lines of header (version and date, source, machine, cutting time) and two per
+    planned operation, each at most 72 characters, comments only, after the tape header;
+    a second run that plans the same keeps it byte for byte (its date included)."""
     text = wall_program(mb, tape=tape)
     plain = rewrite_text(text, JOB, "wall.nc", bowl_index).text
     stamped = rewrite_text(text, replace(JOB, stamp=True), "wall.nc", bowl_index).text
     a, b = plain.splitlines(keepends=True), stamped.splitlines(keepends=True)
     at = 2 if tape else 0
-    assert b[:at] + b[at + 1:] == a
-    assert b[at].startswith(comment + "ncopt ") and "vc=70" in b[at]
-    assert parse_text(b[at]).line_kind.tolist() == [LineKind.BLANK]
+    assert b[:at] + b[at + 6:] == a
+    stamp = b[at:at + 6]
+    assert all(line.startswith(comment + "ncopt ") for line in stamp)
+    assert all(len(line.rstrip("\r\n")) <= 72 for line in stamp)
+    assert re.fullmatch(r"\(ncopt \S+ \d{4}-\d\d-\d\d: S and F for constant vc and fz\)\n",
+                        stamp[0])
+    assert stamp[1] == "(ncopt from wall.nc)\n"
+    assert stamp[2] == "(ncopt machine 227 rad/s2, 15000 RPM)\n"
+    assert stamp[3].startswith("(ncopt cutting time ") and " -> " in stamp[3]
+    assert "vc=70" in stamp[4] and "S0=" in stamp[5]
+    assert parse_text("".join(stamp)).line_kind.tolist() == [LineKind.BLANK] * 6
     again = rewrite_text(stamped, replace(JOB, stamp=True), "wall.nc", bowl_index).text
     assert again == stamped
 

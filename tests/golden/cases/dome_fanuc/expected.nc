@@ -1,6 +1,11 @@
 %
 O1000 (DOME FINISH)
-(ncopt 0.1.0 T1 lines=1-413 vc=90.0000 fz=0.050000 D=10mm r=5mm z=2 band=2 S0=3000 F0=600mm/min - S and F for constant vc and fz)
+(ncopt 0.1.0 2026-01-01: S and F for constant vc and fz)
+(ncopt from input.nc)
+(ncopt machine 150 rad/s2, 12000 RPM)
+(ncopt cutting time 1.1 -> 0.9 min, estimated)
+(ncopt T1 lines=1-413 vc=90.0000 fz=0.050000 band=2)
+(ncopt T1 D=10mm r=5mm z=2 S0=3000 F0=600mm/min)
 (T1 D=10 CR=5 - BALL END MILL)
 N20 G21 G90 G17
 N30 T1 M6

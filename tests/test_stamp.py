@@ -1,0 +1,120 @@
+"""The stamp a rewrite leaves: short lines in the program's comment syntax that say which
+ncopt, when, from which file, for which machine, the new cutting time, and the data a
+re-run plans from; a re-run that plans the same keeps it, old stamps are still read."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import replace
+
+import pytest
+
+from ncopt.api import Job, rewrite_text
+from ncopt.model import Machine
+from ncopt.stamp import STAMP_LINE, read_stamps
+from ncopt.parse import parse_text
+
+JOB = Job(machine=Machine(accel_rad_s2=227.0, max_rpm=15000.0))
+
+
+def raster(header: str = "(T1 D=6. CR=3. - ball end mill)\nG21 G90 G94\nT1 M6\nS4000 M3\n"
+           ) -> str:
+    """Parallel passes over z = -0.005 x^2 - 0.02 y^2 at F800 (no plunge into the part)."""
+    lines = [header.rstrip("\n"), "G0 X0. Y0. Z5."]
+    for k in range(8):
+        xs = [0.5 * i for i in range(31)]
+        xs = xs if k % 2 == 0 else xs[::-1]
+        y = 0.5 * k
+        lines.append(f"G0 X{xs[0]:.3f} Y{y:.3f} Z{-0.005 * xs[0] ** 2 - 0.02 * y * y:.3f}")
+        lines.append(f"G1 X{xs[1]:.3f} Z{-0.005 * xs[1] ** 2 - 0.02 * y * y:.3f} F800.")
+        lines += [f"X{x:.3f} Z{-0.005 * x * x - 0.02 * y * y:.3f}" for x in xs[2:]]
+        lines.append("G0 Z5.")
+    return "\n".join(lines + ["M30", ""])
+
+
+def stamp_of(text: str) -> list[str]:
+    return [line for line in text.splitlines() if STAMP_LINE.match(line)]
+
+
+def test_the_stamp_says_version_date_source_machine_and_time(monkeypatch):
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1767225600")  # 2026-01-01
+    result = rewrite_text(raster(), replace(JOB, machine_name="shop-dmu"), "parts/a.nc")
+    stamp = stamp_of(result.text)
+    assert stamp[0].startswith("(ncopt ") and stamp[0].endswith(
+        " 2026-01-01: S and F for constant vc and fz)")
+    assert stamp[1] == "(ncopt from a.nc)"
+    assert stamp[2] == "(ncopt machine shop-dmu: 227 rad/s2, 15000 RPM)"
+    s = result.summary
+    assert stamp[3] == (f"(ncopt cutting time {s.cut_time_before_min:.1f} -> "
+                        f"{s.cut_time_after_min:.1f} min, estimated)")
+    assert stamp[4].startswith("(ncopt T1 lines=1-") and " vc=75.39822369 fz=0.100000" in stamp[4]
+    assert stamp[5] == "(ncopt T1 D=6mm r=3mm z=2 S0=4000 F0=800mm/min)"
+    assert all(len(line) <= 72 for line in stamp)
+    # the CAM's comments in the corpus are at most 67 characters; a stamp line never runs on
+    assert len(stamp) == 6
+
+
+def test_a_long_file_name_is_cut_and_brackets_never_end_the_comment():
+    name = "/shop/programs/" + "very-long-file-name-" * 4 + "mould (rev B) final;2.nc"
+    stamp = stamp_of(rewrite_text(raster(), JOB, name).text)
+    assert all(len(line) <= 72 for line in stamp)
+    assert stamp[1].startswith("(ncopt from ...") and stamp[1].endswith("final_2.nc)")
+    assert stamp[1].count("(") == 1 and stamp[1].count(")") == 1
+    assert set(parse_text("\n".join(stamp)).line_kind.tolist()) == {0}  # comments only
+
+
+def test_a_program_without_t_words_is_stamped_t_question_mark():
+    """``T-1`` read like a tool number; a program that names no tool says so."""
+    text = raster("(6mm ball end mill)\nG21 G90 G94\nS4000 M3\n")
+    out = rewrite_text(text, replace(JOB, machine=Machine(227.0, 15000.0)), "a.nc").text
+    stamp = stamp_of(out)
+    assert stamp[4].startswith("(ncopt T? lines=") and stamp[5].startswith("(ncopt T? D=6mm")
+    assert "T-1" not in out
+    [(tool, _)] = read_stamps(parse_text(out)).keys()
+    assert tool == -1
+    assert rewrite_text(out, JOB, "a.nc").text == out
+
+
+def test_a_rerun_that_plans_the_same_keeps_the_stamp_its_date_and_source(monkeypatch):
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1767225600")
+    once = rewrite_text(raster(), JOB, "a.nc").text
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1798761600")  # a year later, another name
+    assert rewrite_text(once, JOB, "a_opt.nc").text == once
+
+
+def test_a_rerun_for_another_machine_says_so_and_keeps_the_source(monkeypatch):
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1767225600")
+    once = rewrite_text(raster(), JOB, "a.nc").text
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1798761600")  # 2027-01-01
+    slow = replace(JOB, machine=Machine(accel_rad_s2=131.0, max_rpm=8000.0))
+    again = stamp_of(rewrite_text(once, slow, "a_opt.nc").text)
+    assert again[0].endswith(" 2027-01-01: S and F for constant vc and fz)")
+    assert again[1] == "(ncopt from a.nc)"  # the program it was first planned from
+    assert again[2] == "(ncopt machine 131 rad/s2, 8000 RPM)"
+
+
+@pytest.mark.parametrize("semicolon", [False, True])
+def test_an_old_one_line_stamp_is_still_read(semicolon):
+    """A program stamped by an earlier ncopt (one line per operation) is planned from that
+    stamp, as from a new one: the same S and F words, the stamp in the new form."""
+    text = raster()
+    if semicolon:
+        text = text.replace("(T1 D=6. CR=3. - ball end mill)", "; T1 D=6. CR=3. - ball end mill")
+    new = rewrite_text(text, JOB, "a.nc").text
+    data = stamp_of(new)[4:6]
+    body = lambda line: line.strip()[1:-1] if line.startswith("(") else line[2:]  # noqa: E731
+    a, b = body(data[0]), body(data[1])
+    lines = re.search(r"lines=\S+", a)[0]
+    vc_fz = re.search(r"vc=\S+ fz=\S+", a)[0]
+    band = re.search(r"band=\S+", a)[0]
+    d_r_z = re.search(r"D=\S+ r=\S+ z=\d+", b)[0]
+    s0_f0 = re.search(r"S0=\S+ F0=\S+", b)[0]
+    old = (f"ncopt 0.1.0 T1 {lines} {vc_fz} {d_r_z} {band} {s0_f0} "
+           "- S and F for constant vc and fz")
+    old = f"; {old}" if semicolon else f"({old})"
+    stamped_old = "\n".join([old] + [ln for ln in new.splitlines() if not STAMP_LINE.match(ln)])
+    stamped_old += "\n"
+    again = rewrite_text(stamped_old, JOB, "a.nc").text
+    strip = lambda t: [ln for ln in t.splitlines() if not STAMP_LINE.match(ln)]  # noqa: E731
+    assert strip(again) == strip(new)
+    assert stamp_of(again)[4:] == stamp_of(new)[4:]
