@@ -54,6 +54,9 @@ _MARKS = {
         Mark("R1= parameter", r"^\s*(?:N\d+\s*)?R\d+\s*=", True),
         Mark("S1= spindle speed", r"\bS1\s*=", True),
         Mark("T1 D1 block", r"^\s*(?:N\d+\s+)?T\d+\s+D\d+\s*$", False),
+        # an arc's radius as CR=: Siemens' own word (outside a comment: Fusion writes
+        # "(T1 D=6. CR=3. ...)" in its tool comments for every control)
+        Mark("CR= arc radius", r"^(?:[^(;\n]|\([^)\n]*\))*?\bCR\s*=\s*[-+]?[.\d]", True),
     ],
     FANUC: [
         # a program number line: grbl refuses an O word, LinuxCNC 2.9 reads one as the label
@@ -102,7 +105,7 @@ _SAMPLE_CHARS = 400_000  # headers and the first blocks tell; no need to scan 30
 # ~16 ms on 400 kB; most marks are absent from most programs).
 _NEEDS = {
     SINUMERIK: [("%_N_",), ("CYCLE8",), ("G64",), ("=",), ("DEF",), ("TRAORI", "TRAFOOF"),
-                ("MSG",), ("=",), ("=",), ("D",)],
+                ("MSG",), ("=",), ("=",), ("D",), ("CR",)],
     FANUC: [("O",), ("G43",), ("G28",), ("5.1",), ("#",), ("GOTO",), ("M98",), ("G65",),
             ("M29",), ("G54.1",)],
     LINUXCNC: [("O",), ("#<",), ("G64",), ("MSG", "DEBUG", "PRINT"), ("M2",)],

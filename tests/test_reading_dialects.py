@@ -350,3 +350,18 @@ def test_linuxcnc_refuses_a_comment_before_the_percent_as_rs274_does():
         canon(text)
     assert parse_text("\n%\nG0 X1\nM2\n%\n", dialect=LINUXCNC).n_words == 3  # blank: read
     canon("\n%\nG0 X1\nM2\n%\n")
+
+
+def test_a_cr_arc_marks_sinumerik_and_a_fusion_tool_comment_does_not():
+    """``N000009 G03 X-22.313 Y19.749 CR=4. F250.`` (more2/sinumerik-cr-arcs_test.mpf, no
+    other Siemens mark) is Siemens' own syntax; Fusion writes ``CR=`` in every tool comment
+    (``(T1 D=6. CR=3. - ZMIN=-69.203 - fresa con punta de bola)``), for every control."""
+    from ncopt.dialect import detect
+
+    assert detect("N000001 G40 G17 G90\nN000009 G03 X-22.313 Y19.749 CR=4. F250.\n"
+                  ).name == "sinumerik"
+    assert detect("(T1 D=6. CR=3. - ZMIN=-69.203 - fresa con punta de bola)\nG1 X1 F100\n"
+                  ).name == "generic"
+    corpus = Path(__file__).resolve().parents[1].parent / "shared" / "corpus" / "more2"
+    real = (corpus / "sinumerik-cr-arcs_test.mpf").read_text("latin-1")
+    assert detect(real).name == "sinumerik"
