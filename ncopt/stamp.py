@@ -17,6 +17,7 @@ import numpy as np
 
 from . import __version__
 from .model import Cutter, CuttingData, Edit, LineKind, Program
+from .stampline import STAMP_BODY, STAMP_LINE  # noqa: F401 (re-exported)
 
 # The stamp, in the program's comment syntax, every line at most STAMP_WIDTH characters:
 #
@@ -33,11 +34,6 @@ from .model import Cutter, CuttingData, Edit, LineKind, Program
 # of ncopt before this form are one line per operation (or per tool, ncopt 0.1) and are
 # still read: ``(ncopt 0.2.0 T4 lines=15-3800 vc=70.0198 fz=0.100144 D=16mm r=8mm z=2 ...)``.
 STAMP_WIDTH = 72
-# the text of any stamp line, either form, after its "(" or ";": ncopt's own data, never a
-# tool description or a line of the program (ncopt.tooltable, ncopt.diffview)
-STAMP_BODY = (r"ncopt (?:\S+ T-?\d+ (?:lines=\d+-\d+ )?vc=|T(?:-?\d+|\?) |"
-              r"\d\S* \d{4}-\d\d-\d\d: |from |machine |cutting time )")
-STAMP_LINE = re.compile(r"^\s*(?:\(|;)\s*" + STAMP_BODY)
 _OLD = re.compile(r"^\s*(?:\(|;)\s*ncopt (?P<version>\S+) T(?P<tool>-?\d+)"
                   r"(?: lines=(?P<a>\d+)-(?P<b>\d+))? "
                   r"vc=(?P<vc>[\d.]+) fz=(?P<fz>[\d.]+) D=(?P<d>[\d.]+)(?:mm)? "

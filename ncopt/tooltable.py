@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .model import Cutter, LineKind, Program
-from .stamp import STAMP_BODY
+from .stampline import STAMP_BODY
 from .toolcomments import (BALL, BULL, BULL_NO_RADIUS, FLAT, OTHER, UNKNOWN, Fact,
                            may_describe_a_tool, read_comment, shape)
 
