@@ -494,13 +494,15 @@ def _check_report(report: Optional[Path], json_ok: bool = False,
         raise FileError("the folder to write into does not exist; create it first", str(report))
 
 
-def _write_report(path: Path, gather, mesh: Optional[Path], quiet: bool = False) -> None:
-    """Simulate what the report shows (with the mesh, if any) and write the page."""
+def _write_report(path: Path, gather, mesh: Optional[Path], quiet: bool = False,
+                  lite: bool = False) -> None:
+    """Simulate what the report shows (with the mesh, if any) and write the page (``lite``:
+    static images, no plotly.js)."""
     from .fileio import write_output
     from .geometry import MeshIndex, load_stl
     from .report import render
 
-    page = render(gather(MeshIndex(load_stl(mesh)) if mesh else None))
+    page = render(gather(MeshIndex(load_stl(mesh)) if mesh else None), lite=lite)
     write_output(path, page.encode("utf-8"))
     if not quiet:
         say(f"ncopt: report written to {path}")
@@ -656,8 +658,12 @@ def report(
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, control: Control = None, decimal_point: DecimalPoint = None,
     quiet: Quiet = False, kinematics: KinematicsName = None, color: Color = "auto",
+    lite: Annotated[bool, typer.Option(
+        "--report-lite", "--lite", help="Static images instead of the interactive plots: no "
+        "plotly.js, a page well under 1 MB to mail.")] = False,
 ) -> None:
-    """Write one HTML page about a program (and its original): times, curves, 3D toolpath."""
+    """Write one HTML page about a program (and its original): times, curves, 3D toolpath;
+    a section per tool ncopt would plan (--tool N: that one), the others listed as left."""
     from .report import from_programs
 
     job = make_job(**_job_options(locals()))
@@ -667,7 +673,7 @@ def report(
     text = data[0].decode("latin-1")
     original = data[1].decode("latin-1") if against else None
     _write_report(output, lambda index: from_programs(text, program, original, against, job,
-                                                      index, sample), mesh, quiet)
+                                                      index, sample), mesh, quiet, lite)
 
 
 @app.command()
