@@ -720,34 +720,37 @@ def simulate(
         show(f"reading {program}")
         chosen = tools_to_simulate(programs[-1].decode("latin-1"), job, program)
         sections = [(tool, _simulate_tool(names, programs, job, tool, index, sample,
-                                          judged_band, show)) for tool in chosen.tools]
+                                          judged_band, show, chosen.read))
+                    for tool in chosen.tools]
     _simulation_outputs(sections, chosen.left, as_json, csv, plot, plot_path, color_by, quiet)
 
 
-def _simulate_tool(names, programs, job, tool, index, sample, judged_band, show) -> list:
+def _simulate_tool(names, programs, job, tool, index, sample, judged_band, show,
+                   read=None) -> list:
     """Every program replayed with one tool (None: the only one): [(name, series, report)];
-    one target for all, the first program's."""
+    one target for all, the first program's.  ``read``: the last program, read already."""
     from dataclasses import replace
 
     from .model import CuttingData
 
     job = replace(job, tool=tool)
     runs = []
-    for name, data in zip(names, programs):
+    for k, (name, data) in enumerate(zip(names, programs)):
         show(f"simulating {name}" + (f", T{tool}" if tool is not None else ""))
-        runs.append(_simulate_one(name, data, job, index, sample, judged_band))
+        runs.append(_simulate_one(name, data, job, index, sample, judged_band,
+                                  read if k == len(names) - 1 else None))
         if len(runs) == 1 and job.cutting is None:  # one target for all: the first's
             first = runs[0][2]
             job = replace(job, cutting=CuttingData(first.vc_target_m_min, first.fz_target_mm))
     return runs
 
 
-def _simulate_one(name, data, job, index, sample, judged_band):
+def _simulate_one(name, data, job, index, sample, judged_band, read=None):
     """One program replayed: (name, series, report)."""
     from .simulate import simulate_program
 
     report, series = simulate_program(data.decode("latin-1"), job, index, path=name,
-                                      sample_mm=sample,
+                                      sample_mm=sample, read=read,
                                       band=None if judged_band is None else judged_band / 100.0)
     return name, series, report
 

@@ -151,7 +151,8 @@ def from_programs(program_text: str, program_path: str, against_text: str | None
             if text is None:
                 continue
             rep, series = simulate_program(text, tool_job, mesh_index, path=path,
-                                           sample_mm=sample_mm)
+                                           sample_mm=sample_mm,
+                                           read=chosen.read if text is program_text else None)
             if tool_job.cutting is None:  # one target for all: the first program's
                 tool_job = replace(tool_job, cutting=CuttingData(rep.vc_target_m_min,
                                                                  rep.fz_target_mm))

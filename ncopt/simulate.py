@@ -55,7 +55,7 @@ from .api import Job, nominal_cutting_data, read_text
 from .stamp import read_stamps, stamped_line
 from .contacts import (MAX_SAMPLES_PER_MOVE, centre_offsets, path_contacts_at_samples,
                        sample_axes, sample_points)
-from .errors import UsageError
+from .errors import NcoptError, UsageError
 from .geometry import MeshIndex, contacts_from_mesh, load_stl
 from .interp import MM_PER_INCH, ffill, interpret
 from .kinematics import tilt_deg
@@ -234,7 +234,8 @@ def simulate_file(path: str | Path, job: Job, mesh_path: str | Path | None, *,
 def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = None, *,
                      path: str = "<input>", sample_mm: float = 0.1,
                      contacts: Contacts | None = None,
-                     band: float | None = None) -> tuple[SimReport, SimSeries]:
+                     band: float | None = None,
+                     read: tuple[Program, Toolpath] | None = None) -> tuple[SimReport, SimSeries]:
     """Replay a program on the machine model of ``job``.
 
     Parameters
@@ -258,6 +259,9 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
     band : float or None
         Relative fz band for ``fz_in_band_pct`` and the lag check (None: the band an
         ncopt stamp records, else 0.02).
+    read : (Program, Toolpath) or None
+        The program as :func:`tools_to_simulate` read it (``ToolsToSimulate.read``): the
+        same text with the same job's control, decimal point and kinematics, not read again.
 
     Returns
     -------
@@ -271,8 +275,10 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
     """
     if not sample_mm > 0:
         raise UsageError(f"sample spacing must be positive, got {sample_mm}", path)
-    prog = read_text(prog_text, path, job)
-    tp = interpret(prog, kinematics=job.kinematics)
+    if read is None:
+        prog = read_text(prog_text, path, job)
+        read = prog, interpret(prog, kinematics=job.kinematics)
+    prog, tp = read
     cutter, tool_mask, number, source = _evaluated_tool(prog, tp, job, path)
     job = replace(job, cutter=cutter)
     moves = _move_table(prog, tp, job, tool_mask)
@@ -446,11 +452,13 @@ class ToolsToSimulate:
         their operations
     operations : ``ncopt.inspect.JudgedOperation`` per operation, as rewrite would split
         and judge them (empty when not judged)
+    read : the program and its toolpath, for :func:`simulate_program`
     """
 
     tools: tuple
     left: tuple = ()
     operations: tuple = ()
+    read: tuple | None = None
 
 
 def tools_to_simulate(prog_text: str, job: Job, path: str = "<input>",
@@ -470,9 +478,12 @@ def tools_to_simulate(prog_text: str, job: Job, path: str = "<input>",
     used = _feed_tools(tp)
     if job.tool is not None or len(used) <= 1:
         ops = ()
-        if judge:
-            ops = judge_operations(prog, tp, job, job.machine.max_feed_mm_min)
-        return ToolsToSimulate((job.tool,), (), ops)
+        if judge:  # for the report's table only: the simulation does not need it
+            try:
+                ops = judge_operations(prog, tp, job, job.machine.max_feed_mm_min)
+            except NcoptError:
+                ops = ()
+        return ToolsToSimulate((job.tool,), (), ops, (prog, tp))
     ops = judge_operations(prog, tp, job, job.machine.max_feed_mm_min)
     planned = list(dict.fromkeys(o.tool for o in ops if o.planned))  # program order
     left = []
@@ -486,7 +497,7 @@ def tools_to_simulate(prog_text: str, job: Job, path: str = "<input>",
         raise UsageError(f"none of the tools the program cuts with is one ncopt plans "
                          f"({listed}); simulate one with --tool N (and --diameter for its "
                          "cutter)", path)
-    return ToolsToSimulate(tuple(planned), tuple(left), ops)
+    return ToolsToSimulate(tuple(planned), tuple(left), ops, (prog, tp))
 
 
 @dataclass(frozen=True)
