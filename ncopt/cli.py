@@ -496,13 +496,15 @@ def _check_report(report: Optional[Path], json_ok: bool = False,
         raise FileError("the folder to write into does not exist; create it first", str(report))
 
 
-def _write_report(path: Path, gather, mesh: Optional[Path], quiet: bool = False) -> None:
-    """Simulate what the report shows (with the mesh, if any) and write the page."""
+def _write_report(path: Path, gather, mesh: Optional[Path], quiet: bool = False,
+                  lite: bool = False) -> None:
+    """Simulate what the report shows (with the mesh, if any) and write the page (``lite``:
+    static images, no plotly.js)."""
     from .fileio import write_output
     from .geometry import MeshIndex, load_stl
     from .report import render
 
-    page = render(gather(MeshIndex(load_stl(mesh)) if mesh else None))
+    page = render(gather(MeshIndex(load_stl(mesh)) if mesh else None), lite=lite)
     write_output(path, page.encode("utf-8"))
     if not quiet:
         say(f"ncopt: report written to {path}")
@@ -658,8 +660,12 @@ def report(
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, control: Control = None, decimal_point: DecimalPoint = None,
     quiet: Quiet = False, kinematics: KinematicsName = None, color: Color = "auto",
+    lite: Annotated[bool, typer.Option(
+        "--report-lite", "--lite", help="Static images instead of the interactive plots: no "
+        "plotly.js, a page well under 1 MB to mail.")] = False,
 ) -> None:
-    """Write one HTML page about a program (and its original): times, curves, 3D toolpath."""
+    """Write one HTML page about a program (and its original): times, curves, 3D toolpath;
+    a section per tool ncopt would plan (--tool N: that one), the others listed as left."""
     from .report import from_programs
 
     job = make_job(**_job_options(locals()))
@@ -669,7 +675,7 @@ def report(
     text = data[0].decode("latin-1")
     original = data[1].decode("latin-1") if against else None
     _write_report(output, lambda index: from_programs(text, program, original, against, job,
-                                                      index, sample), mesh, quiet)
+                                                      index, sample), mesh, quiet, lite)
 
 
 @app.command()
@@ -698,37 +704,55 @@ def simulate(
         "records, else 2).")] = None,
     quiet: Quiet = False, kinematics: KinematicsName = None, color: Color = "auto",
 ) -> None:
-    """Replay a program on a spindle that ramps at its real acceleration: time, fz, vc."""
-    from dataclasses import replace
+    """Replay a program on a spindle that ramps at its real acceleration: time, fz, vc.
 
+    A program that cuts with several tools is replayed once per tool ncopt would plan
+    (--tool N: that one only); the others are listed with why they are left."""
     from .geometry import MeshIndex, load_stl
-    from .model import CuttingData
+    from .simulate import tools_to_simulate
 
     _check_outputs(color_by, csv, plot, plot_path)
     job = make_job(**_job_options(locals()))
     names = ([against] if against else []) + [program]
     programs = read_programs(names)
-    runs = []
     with stages(quiet or as_json) as show:
         if mesh:
             show(f"reading the mesh {mesh}")
         index = MeshIndex(load_stl(mesh)) if mesh else None
-        for name, data in zip(names, programs):
-            show(f"simulating {name}")
-            runs.append(_simulate_one(name, data, job, index, sample, judged_band))
-            if len(runs) == 1 and job.cutting is None:  # one target for all: the first's
-                report = runs[0][2]
-                job = replace(job, cutting=CuttingData(report.vc_target_m_min,
-                                                       report.fz_target_mm))
-    _simulation_outputs(runs, as_json, csv, plot, plot_path, color_by, quiet)
+        show(f"reading {program}")
+        chosen = tools_to_simulate(programs[-1].decode("latin-1"), job, program)
+        sections = [(tool, _simulate_tool(names, programs, job, tool, index, sample,
+                                          judged_band, show, chosen.read))
+                    for tool in chosen.tools]
+    _simulation_outputs(sections, chosen.left, as_json, csv, plot, plot_path, color_by, quiet)
 
 
-def _simulate_one(name, data, job, index, sample, judged_band):
+def _simulate_tool(names, programs, job, tool, index, sample, judged_band, show,
+                   read=None) -> list:
+    """Every program replayed with one tool (None: the only one): [(name, series, report)];
+    one target for all, the first program's.  ``read``: the last program, read already."""
+    from dataclasses import replace
+
+    from .model import CuttingData
+
+    job = replace(job, tool=tool)
+    runs = []
+    for k, (name, data) in enumerate(zip(names, programs)):
+        show(f"simulating {name}" + (f", T{tool}" if tool is not None else ""))
+        runs.append(_simulate_one(name, data, job, index, sample, judged_band,
+                                  read if k == len(names) - 1 else None))
+        if len(runs) == 1 and job.cutting is None:  # one target for all: the first's
+            first = runs[0][2]
+            job = replace(job, cutting=CuttingData(first.vc_target_m_min, first.fz_target_mm))
+    return runs
+
+
+def _simulate_one(name, data, job, index, sample, judged_band, read=None):
     """One program replayed: (name, series, report)."""
     from .simulate import simulate_program
 
     report, series = simulate_program(data.decode("latin-1"), job, index, path=name,
-                                      sample_mm=sample,
+                                      sample_mm=sample, read=read,
                                       band=None if judged_band is None else judged_band / 100.0)
     return name, series, report
 
@@ -757,27 +781,59 @@ def _has_matplotlib() -> bool:
     return find_spec("matplotlib") is not None
 
 
-def _simulation_outputs(runs, as_json, csv, plot, plot_path, color_by, quiet=False) -> None:
-    name, series, report = runs[-1]
+def _simulation_outputs(sections, left, as_json, csv, plot, plot_path, color_by,
+                        quiet=False) -> None:
+    """Files, then the summary: ``sections`` [(tool, runs)], one per tool simulated (tool
+    None: the program's only one), ``left`` (T, why) the tools not simulated.  With several
+    tools each file is written once per tool, ``NAME.T3.csv``."""
+    several = len(sections) > 1 or sections[0][0] is not None and bool(left)
     try:
-        if csv is not None:
-            series.write_csv(csv)
-        if plot is not None or plot_path is not None:
-            from .plots import plot_along_path, plot_toolpath
-            if plot is not None:
-                plot_along_path(runs, plot)
-            if plot_path is not None:
-                plot_toolpath(series, plot_path, color_by)
+        for tool, runs in sections:
+            _simulation_files(runs, csv, plot, plot_path, color_by,
+                              f".T{tool}" if several else "")
     except OSError as exc:
         raise FileError(f"cannot write the output: {exc.strerror or exc}; check the path",
                         str(exc.filename)) from None
     if as_json:
         import json
-        out = {r[0]: r[2].to_dict() for r in runs} if len(runs) > 1 else report.to_dict()
-        print(json.dumps(out, indent=2))
+        print(json.dumps(_simulation_json(sections, left, several), indent=2))
         return
-    for name, _, rep in runs if not quiet else ():
-        print_simulation(rep, err)
+    if quiet:
+        return
+    for tool, runs in sections:
+        if several:
+            rep = runs[-1][2]
+            say(f"T{tool}: {rep.cutter} (from {rep.cutter_from})")
+        for _, _, rep in runs:
+            print_simulation(rep, err)
+    for tool, why in left:
+        say(f"T{tool}: not simulated, left as programmed: {why}")
+
+
+def _simulation_files(runs, csv, plot, plot_path, color_by, tag: str) -> None:
+    """The series, the curves and the toolpath of one tool (``tag`` goes into the names)."""
+    tagged = lambda path: path.with_name(path.stem + tag + path.suffix)  # noqa: E731
+    series = runs[-1][1]
+    if csv is not None:
+        series.write_csv(tagged(csv))
+    if plot is not None or plot_path is not None:
+        from .plots import plot_along_path, plot_toolpath
+        if plot is not None:
+            plot_along_path(runs, tagged(plot))
+        if plot_path is not None:
+            plot_toolpath(series, tagged(plot_path), color_by)
+
+
+def _simulation_json(sections, left, several: bool) -> dict:
+    """One program: its report; with --against, one per program; with several tools,
+    ``{"tools": {"T3": that}, "left": {"T1": why}}``."""
+    def one(runs):
+        return {r[0]: r[2].to_dict() for r in runs} if len(runs) > 1 else runs[-1][2].to_dict()
+
+    if not several:
+        return one(sections[0][1])
+    return {"tools": {f"T{tool}": one(runs) for tool, runs in sections},
+            "left": {f"T{tool}": why for tool, why in left}}
 
 
 def print_simulation(r, console: "Console") -> None:

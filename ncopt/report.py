@@ -1,45 +1,49 @@
-"""One self-contained HTML report a shop can open offline, print and mail.
+"""One HTML report a shop can open offline, print and mail.
 
-What it holds: the settings, time before -> after for the whole program and per
-tool, the rewrite's summary and warnings, S, F, fz and effective diameter along
-the cut (original and rewrite), a 3D toolpath coloured by S, F, D_eff or vc
-that turns and zooms, and the first changed blocks side by side.
+What it holds: the job (machine, control, targets), time before -> after for the
+whole program and per tool, every tool and operation (planned, or left as
+programmed and why), the control's notes and the warnings, S, F, fz, vc and
+effective diameter along the cut of each planned tool (original and rewrite), a
+3D toolpath coloured by S, F, D_eff or vc that turns and zooms, and the first
+changed blocks side by side.
 
-* Interactive plots are plotly.js, embedded whole (no network at view time);
-  the figures are written here as plotly JSON with float32 typed arrays, so the
-  data of a 150k-block program stays around a megabyte: curves are thinned to
-  their min/max per bucket (peaks survive), the 3D path to evenly spaced samples.
+* Interactive plots are plotly.js (no network at view time): embedded whole in a
+  single page; a batch's pages share one ``plotly.min.js`` in their folder
+  (:func:`write_file_page`).  The figures are plotly JSON with float32 typed
+  arrays (:mod:`ncopt.plots`), thinned to their min/max per bucket (peaks survive),
+  the 3D path to evenly spaced samples.
 * Printed (A4), the interactive plots give way to static PNGs (matplotlib,
-  embedded as data URIs, shown only in print).
+  embedded as data URIs, shown only in print).  A lite page (``lite``) has only
+  those images, on screen too, and no plotly: well under a megabyte.
 * :func:`from_rewrite` and :func:`from_programs` are the only functions that
   know ``ncopt.api`` and ``ncopt.simulate``; everything else renders a
-  :class:`ReportData`.  The rewrite's :class:`ncopt.api.Summary` is rendered
-  field by field, whatever fields it has.
+  :class:`ReportData`.
 """
 
 from __future__ import annotations
 
 import base64
-import dataclasses
 import datetime
 import html
 import json
-from dataclasses import dataclass, replace
+import os
+from dataclasses import dataclass, fields, replace
 from itertools import islice
 from pathlib import Path
 
-import numpy as np
-
 from . import __version__
+from .plots import colour_range as _colour_range  # noqa: F401 - the report's colour scales
 from .simulate import SimReport, SimSeries
 
 CURVE_POINTS = 4000  # per curve and program (min/max buckets)
-PATH_POINTS = 30000  # 3D toolpath samples, all tools together
+PATH_POINTS = 24000  # 3D toolpath samples, all tools together
 PRINT_PATH_POINTS = 20000  # samples in the printed toolpath image
 DIFF_ROWS = 60  # changed blocks shown side by side
-COLOR_BY = (("s_rpm", "S [RPM]"), ("f_mm_min", "F [mm/min]"), ("d_eff_mm", "D_eff [mm]"),
-            ("vc_m_min", "vc [m/min]"))
+PLOTLY_FILE = "plotly.min.js"  # a batch's pages share this file, in the pages' folder
 _TEMPLATE = Path(__file__).resolve().parent / "data" / "report.css"
+CONTROL_NAMES = {"sinumerik": "Siemens Sinumerik", "fanuc": "Fanuc", "linuxcnc": "LinuxCNC",
+                 "grbl": "grbl", "heidenhain-iso": "Heidenhain (ISO programs)",
+                 "generic": "generic G-code"}
 
 
 @dataclass(frozen=True)
@@ -53,11 +57,16 @@ class Run:
 
 @dataclass(frozen=True)
 class ToolSection:
-    """The runs of one tool: the original first (when there is one)."""
+    """The runs of one tool: the original first (when there is one).
+
+    tool : T number (-1: the program names none);  cutter : ``D16 ball, 2 teeth``;
+    cutter_from : where the cutter came from
+    """
 
     tool: int
     cutter: str
     runs: tuple[Run, ...]
+    cutter_from: str = ""
 
 
 @dataclass(frozen=True)
@@ -66,7 +75,10 @@ class ReportData:
 
     settings : (name, value) rows;  summary : the rewrite's summary (any frozen
     dataclass), None for a report of given programs;  lines : (original, program)
-    text lines for the side-by-side blocks, None without an original
+    text lines for the side-by-side blocks, None without an original;
+    operations : (operation, tool, lines, planned, what or why, time) text rows;
+    left : (T, why) the tools that cut but are not planned;  notes : what the
+    control does with the program
     """
 
     program: str
@@ -77,6 +89,9 @@ class ReportData:
     warnings: tuple = ()
     lines: tuple | None = None
     created: str = ""
+    operations: tuple = ()
+    left: tuple = ()
+    notes: tuple = ()
 
 
 # ------------------------------------------------------------ gathering (the coupling)
@@ -85,10 +100,15 @@ class ReportData:
 def from_rewrite(result, original_text: str, original_path: str, output_path: str, job,
                  mesh_index=None, sample_mm: float = 0.1) -> ReportData:
     """The report of an ``ncopt.api.Result``: original and rewrite simulated per planned tool."""
-    from .simulate import simulate_program
+    from .simulate import describe_cutter, simulate_program
 
-    sections = []
+    s = result.summary
+    sources = {t: src for t, _, src in s.tools}
+    sections, done = [], set()
     for plan in result.plans:
+        if plan.tool in done:  # one section per tool, however many operations it planned
+            continue
+        done.add(plan.tool)
         tool_job = replace(job, cutter=plan.cutter, cutting=plan.cutting, tool=plan.tool)
         runs = []
         for path, text, role in ((original_path, original_text, "original"),
@@ -96,57 +116,108 @@ def from_rewrite(result, original_text: str, original_path: str, output_path: st
             rep, series = simulate_program(text, tool_job, mesh_index, path=path,
                                            sample_mm=sample_mm)
             runs.append(Run(f"{Path(path).name} ({role})", series, rep))
-        sections.append(ToolSection(plan.tool, _describe(plan.cutter), tuple(runs)))
-    s = result.summary
-    return ReportData(output_path, original_path, _settings(job, s.control, s.s_changes, True),
-                      tuple(sections), s, tuple(s.warnings),
-                      (original_text.splitlines(), result.text.splitlines()), _now())
+        source = sources.get(plan.tool, "")
+        sections.append(ToolSection(plan.tool, describe_cutter(plan.cutter), tuple(runs),
+                                    "the options" if source == "options" else source))
+    operations = tuple(_op_row(o.name, o.tool, o.lines, o.planned, o.kind, o.reason,
+                               f"{o.time_before_min:.1f} → {o.time_after_min:.1f} min",
+                               f"S {o.s_min_rpm:.0f}-{o.s_max_rpm:.0f} RPM")
+                       for o in s.operations)
+    control = _control(s.control, s.control_source)
+    rows = _settings(job, control, s.s_changes, True) + _mesh_rows(s)
+    return ReportData(output_path, original_path, rows, tuple(sections), s, tuple(s.warnings),
+                      (original_text.splitlines(), result.text.splitlines()), _now(),
+                      operations, tuple(s.skipped_tools), tuple(s.control_notes))
 
 
 def from_programs(program_text: str, program_path: str, against_text: str | None,
                   against_path: str | None, job, mesh_index=None,
                   sample_mm: float = 0.1) -> ReportData:
-    """The report of given programs (any, by ncopt or not), as ``ncopt simulate`` sees them.
+    """The report of given programs (any, by ncopt or not), as ``ncopt simulate`` sees them:
+    a section per tool ncopt would plan (or ``job.tool``), the others listed as left.
 
     The original's targets (its own S and F at the nominal diameter) judge both.
     """
+    from .dialect import detect
     from .model import CuttingData
-    from .simulate import simulate_program
+    from .simulate import simulate_program, tools_to_simulate
 
-    runs = []
-    for path, text, role in ((against_path, against_text, " (original)"),
-                             (program_path, program_text, "")):
-        if text is None:
-            continue
-        rep, series = simulate_program(text, job, mesh_index, path=path, sample_mm=sample_mm)
-        if job.cutting is None:  # one target for all: the first program's
-            job = replace(job, cutting=CuttingData(rep.vc_target_m_min, rep.fz_target_mm))
-        runs.append(Run(Path(path).name + role, series, rep))
-    cutter = job.cutter
-    section = ToolSection(job.tool if job.tool is not None else -1,
-                          _describe(cutter) if cutter else "from the program's comments",
-                          tuple(runs))
-    warnings = tuple(w for r in runs for w in r.report.warnings)
+    chosen = tools_to_simulate(program_text, job, program_path, judge=True)
+    sections = []
+    for tool in chosen.tools:
+        tool_job, runs = replace(job, tool=tool), []
+        for path, text, role in ((against_path, against_text, " (original)"),
+                                 (program_path, program_text, "")):
+            if text is None:
+                continue
+            rep, series = simulate_program(text, tool_job, mesh_index, path=path,
+                                           sample_mm=sample_mm,
+                                           read=chosen.read if text is program_text else None)
+            if tool_job.cutting is None:  # one target for all: the first program's
+                tool_job = replace(tool_job, cutting=CuttingData(rep.vc_target_m_min,
+                                                                 rep.fz_target_mm))
+            runs.append(Run(Path(path).name + role, series, rep))
+        last = runs[-1].report
+        sections.append(ToolSection(last.tool, last.cutter, tuple(runs), last.cutter_from))
+    operations = tuple(_op_row(o.name, o.tool, o.lines, o.planned, o.kind, o.reason,
+                               f"{o.time_min:.1f} min at the programmed feed", "")
+                       for o in chosen.operations)
+    found = detect(program_text)
+    control = _control(job.control or found.name, job.control_from if job.control else (
+        f"detected from {len(found.marks)} mark{'s' if len(found.marks) > 1 else ''}"
+        if found.marks else "no marks: generic"))
+    warnings = tuple(dict.fromkeys(w for s in sections for r in s.runs
+                                   for w in r.report.warnings))
     lines = (against_text.splitlines(), program_text.splitlines()) if against_text else None
-    return ReportData(program_path, against_path, _settings(job, job.control, None, False),
-                      (section,), None, warnings, lines, _now())
+    rows = _settings(job, control, None, False) + (
+        ("mesh", "given" if mesh_index is not None else
+         "none: contacts from the toolpath's own shape"),)
+    return ReportData(program_path, against_path, rows, tuple(sections), None, warnings, lines,
+                      _now(), operations, chosen.left)
 
 
-def _describe(cutter) -> str:
-    kind = "ball" if cutter.is_ball else f"bull-nose r{cutter.corner_radius_mm:g}"
-    return f"D{cutter.diameter_mm:g} {kind}, {cutter.teeth} teeth"
+def _op_row(name, tool, lines, planned, kind, reason, time, extra) -> tuple:
+    """An operation as the page shows it."""
+    what = (kind.lower() + (f", {extra}" if extra else "")) if planned else reason
+    return (name, f"T{tool}" if tool >= 0 else "-", lines,
+            "planned" if planned else "left as programmed", what, time)
 
 
-def _settings(job, control, s_changes, planned: bool) -> tuple:
-    """Machine, cutter and targets; with ``planned``, how ncopt planned too."""
+def _control(name: str, source: str) -> str:
+    """``Siemens Sinumerik (sinumerik): detected from 1 mark``."""
+    if not name:
+        return "not known"
+    if name == "generic" and source.startswith("no marks"):
+        return "generic G-code: the program has no mark of a particular control"
+    return f"{CONTROL_NAMES.get(name, name)} ({name})" + (f": {source}" if source else "")
+
+
+def _mesh_rows(s) -> tuple:
+    """How the contacts were found: the mesh and how well it fits, or the toolpath."""
+    if s.normals_from == "toolpath":
+        return (("mesh", f"none: normals from the toolpath (stepover {s.stepover_mm:.2f} mm); "
+                         f"{s.unknown_contact_pct:.1f} % of the planned cut with no contact "
+                         "the toolpath can show, planned at the full diameter"),)
+    fits = "; ".join(f"T{t} fits {f.touching_pct:.1f} % of the planned cut ({f.air_pct:.1f} "
+                     f"% in the air, {f.gouge_pct:.1f} % inside the part, deepest "
+                     f"{f.deepest_gouge_mm:.3f} mm)" for t, f in s.mesh_fit)
+    edge = f"median edge {s.mesh_edge_mm:.2f} mm" if s.mesh_edge_mm is not None else "given"
+    return (("mesh", edge + (f"; {fits}" if fits else "")),)
+
+
+def _settings(job, control: str, s_changes, planned: bool) -> tuple:
+    """Machine, control, cutter and targets; with ``planned``, how ncopt planned too."""
+    from .simulate import describe_cutter
+
     m, o = job.machine, job.options
     top = f"at most {m.max_feed_mm_min:g} mm/min" if m.max_feed_mm_min < float("inf") else \
         "no limit"
     rows = [("spindle", f"{m.accel_rad_s2:g} rad/s² ({m.accel_rpm_s:.0f} RPM/s), "
                         f"{m.min_rpm:g}-{m.max_rpm:g} RPM"),
-            ("feed", f"{top}; rapids {m.rapid_mm_min:g} mm/min")]
+            ("feed", f"{top}; rapids {m.rapid_mm_min:g} mm/min"), ("control", control)]
     if job.cutter is not None:
-        rows.append(("cutter", _describe(job.cutter) + f", programmed at the {job.cutter.tool_point}"))
+        rows.append(("cutter", describe_cutter(job.cutter)
+                     + f", programmed at the {job.cutter.tool_point}"))
     if job.cutting is not None:
         rows.append(("targets", f"vc {job.cutting.vc_m_min:.1f} m/min, "
                                 f"fz {job.cutting.fz_mm:.4f} mm"))
@@ -154,7 +225,6 @@ def _settings(job, control, s_changes, planned: bool) -> tuple:
         rows.append(("planner", f"{o.planner}, fz {o.fz_policy} within "
                                 f"+-{100 * o.fz_tolerance:g} %, S steps of at least "
                                 f"{o.min_rpm_step:g} RPM, S changes {s_changes}"))
-    rows.append(("control", control or "detected from the program"))
     return tuple(rows)
 
 
@@ -165,28 +235,38 @@ def _now() -> str:
 # ------------------------------------------------------------ the page
 
 
-def render(data: ReportData) -> str:
-    """The whole page as one string (plotly.js and the print images inside)."""
-    from plotly.offline import get_plotlyjs
+def render(data: ReportData, *, lite: bool = False, plotly_src: str | None = None) -> str:
+    """The whole page as one string.
 
+    Default: plotly.js inside the page (it opens anywhere, offline);  ``plotly_src``: a
+    ``<script src>`` to a shared copy instead (a batch's pages);  ``lite``: no plotly,
+    static images only.
+    """
     title = f"ncopt report: {Path(data.program).name}"
     body = [f"<header><h1>{_e(title)}</h1><p class=meta>{_e(_subtitle(data))}</p></header>",
-            _overview(data), _table("Settings", ("setting", "value"), data.settings)]
-    body.append(_tools_table(data))
-    notes = getattr(data.summary, "control_notes", ())
-    body.append(_table("Control", ("what the control does with this program",),
-                       [(n,) for n in notes]))
-    body.append(_warnings(data.warnings))
+            _overview(data), _table("Job", ("", ""), data.settings), _tools_table(data),
+            _operations_table(data),
+            _table("Control", ("what the control does with this program",),
+                   [(n,) for n in data.notes]),
+            _warnings(data.warnings)]
     figures = []
     for k, section in enumerate(data.sections):
-        html_part, figs = _section(section, k, len(data.sections))
+        html_part, figs = _section(section, k, len(data.sections), lite)
         body.append(html_part)
         figures += figs
     if data.lines is not None:
         body.append(_diff_section(data))
     if data.summary is not None:
-        body.append(_summary_section(data.summary))
-    return _page(title, "\n".join(body), figures, get_plotlyjs())
+        body.append(_figures_by_name(data.summary))
+    if lite:
+        script = ""
+    elif plotly_src is not None:
+        script = f"<script src='{_e(plotly_src)}'></script>"
+    else:
+        from plotly.offline import get_plotlyjs
+
+        script = f"<script>{get_plotlyjs()}</script>"
+    return _page(title, "\n".join(body), figures, script)
 
 
 def write(path: str | Path, page: str, make_parents: bool = False) -> Path:
@@ -207,15 +287,30 @@ def _e(text) -> str:
     return html.escape(str(text), quote=True)
 
 
-def _page(title: str, body: str, figures: list, plotly_js: str) -> str:
-    css = _TEMPLATE.read_text(encoding="utf-8")
-    calls = "\n".join(f"ncoptPlot({json.dumps(div)}, {fig});" for div, fig in figures)
+# what report.css (the screen and print layout) leaves to the report's later parts
+_CSS = """
+table.code { table-layout: fixed; }
+table.code th.n { width: 4.5em; }
+table.code td { white-space: pre-wrap; overflow-wrap: anywhere; }
+img.figure { display: block; max-width: 100%; height: auto; margin: 8px 0; }
+td.planned { color: #060; font-weight: 600; white-space: nowrap; }
+td.left { color: var(--mute); white-space: nowrap; }
+td.nowrap { white-space: nowrap; }
+details.figures > summary { cursor: pointer; }
+details.figures > summary h2 { display: inline-block; border: none; }
+"""
+
+
+def _page(title: str, body: str, figures: list, script: str) -> str:
+    css = _TEMPLATE.read_text(encoding="utf-8") + _CSS
+    draw = ""
+    if figures:
+        calls = "\n".join(f"ncoptPlot({json.dumps(div)}, {fig});" for div, fig in figures)
+        draw = f"<script>{_DRAW_JS}\n{calls}\n</script>\n"
     return (f"<!DOCTYPE html>\n<html lang=en><head><meta charset=utf-8>"
             f"<meta name=viewport content='width=device-width, initial-scale=1'>"
-            f"<title>{_e(title)}</title><style>{css}</style>"
-            f"<script>{plotly_js}</script></head>\n<body>\n{body}\n"
-            f"<pre id=ncopt-errors class=screen-only></pre>\n<script>{_DRAW_JS}\n{calls}\n"
-            "</script>\n</body></html>\n")
+            f"<title>{_e(title)}</title><style>{css}</style>{script}</head>\n<body>\n{body}\n"
+            f"<pre id=ncopt-errors class=screen-only></pre>\n{draw}</body></html>\n")
 
 
 # The page notes every plot it drew (data-drawn) and every script error it met, so a
@@ -227,6 +322,11 @@ window.addEventListener('error', function (e) {
 var ncoptPending = 0;
 function ncoptPlot(id, fig) {
   var div = document.getElementById(id);
+  if (typeof Plotly === 'undefined') {
+    document.getElementById('ncopt-errors').textContent +=
+      'plotly.js did not load: keep ' + %s + ' beside this page\\n';
+    return;
+  }
   ncoptPending += 1;
   Plotly.newPlot(div, fig.data, fig.layout, fig.config).then(function () {
     div.setAttribute('data-drawn', '1');
@@ -238,7 +338,7 @@ function ncoptPlot(id, fig) {
     document.getElementById('ncopt-errors').textContent += 'plot ' + id + ': ' + err + '\\n';
   });
 }
-"""
+""" % json.dumps(PLOTLY_FILE)
 
 
 def _overview(d: ReportData) -> str:
@@ -247,14 +347,16 @@ def _overview(d: ReportData) -> str:
     runs = [s.runs for s in d.sections]
     before = sum(r[0].report.cutting_time_min for r in runs)
     after = sum(r[-1].report.cutting_time_min for r in runs)
+    tools = ", ".join(_tool_name(s.tool) for s in d.sections)
     if d.against:
         change = 100.0 * (after / before - 1.0) if before > 0 else 0.0
-        cards.append(("cutting time", f"{before:.1f} → {after:.1f} min", f"{change:+.1f} %"))
+        cards.append((f"cutting time ({tools})", f"{before:.1f} → {after:.1f} min",
+                      f"{change:+.1f} %"))
         total = (runs[0][0].report.total_time_min, runs[0][-1].report.total_time_min)
         cards.append(("whole program", f"{total[0]:.1f} → {total[1]:.1f} min",
                       "feeds and rapids"))
     else:
-        cards.append(("cutting time", f"{after:.1f} min",
+        cards.append((f"cutting time ({tools})", f"{after:.1f} min",
                       f"whole program {runs[0][-1].report.total_time_min:.1f} min"))
     last = [r[-1].report for r in runs]
     band = min(r.fz_in_band_pct for r in last)
@@ -274,20 +376,32 @@ def _overview(d: ReportData) -> str:
     return f"<section class=cards>{items}</section>"
 
 
-def _table(title: str, head: tuple, rows) -> str:
-    """A titled table; no header row when ``head`` is empty."""
+def _tool_name(tool: int) -> str:
+    return f"T{tool}" if tool >= 0 else "the program's tool (no T word)"
+
+
+def _table(title: str, head: tuple, rows, classes: tuple = ()) -> str:
+    """A titled table; no header row when ``head`` is empty or all blank; ``classes``: a
+    class per column (or "")."""
     if not rows:
         return ""
-    th = "<tr>" + "".join(f"<th>{_e(h)}</th>" for h in head) + "</tr>" if head else ""
-    tr = "".join("<tr>" + "".join(f"<td>{_e(c)}</td>" for c in row) + "</tr>" for row in rows)
+    th = "<tr>" + "".join(f"<th>{_e(h)}</th>" for h in head) + "</tr>" if any(head) else ""
+    tr = "".join("<tr>" + "".join(_td(c, classes[j] if j < len(classes) else "")
+                                  for j, c in enumerate(row)) + "</tr>" for row in rows)
     return f"<section><h2>{_e(title)}</h2><table>{th}{tr}</table></section>"
 
 
+def _td(cell, cls: str) -> str:
+    if cls == "status":
+        cls = "planned" if cell == "planned" else "left"
+    return f"<td class={cls}>{_e(cell)}</td>" if cls else f"<td>{_e(cell)}</td>"
+
+
 def _tools_table(d: ReportData) -> str:
+    """Each tool simulated: its cutter, targets, times and checks; each tool left, why."""
     rows = []
     for s in d.sections:
         first, last = s.runs[0].report, s.runs[-1].report
-        name = f"T{s.tool}" if s.tool >= 0 else "tool"
         if len(s.runs) > 1:
             change = (100.0 * (last.cutting_time_min / first.cutting_time_min - 1.0)
                       if first.cutting_time_min > 0 else 0.0)
@@ -295,43 +409,38 @@ def _tools_table(d: ReportData) -> str:
                     f"({change:+.1f} %)")
         else:
             time = f"{last.cutting_time_min:.2f} min"
-        rows.append((name, s.cutter, f"vc {first.vc_target_m_min:.1f} m/min, fz "
-                     f"{first.fz_target_mm:.4f} mm", time, f"{last.fz_in_band_pct:.2f} %",
+        cutter = s.cutter + (f" (from {s.cutter_from})" if s.cutter_from else "")
+        rows.append((_tool_name(s.tool), "planned", cutter,
+                     f"vc {first.vc_target_m_min:.1f} m/min, fz {first.fz_target_mm:.4f} mm",
+                     time, f"{last.fz_in_band_pct:.2f} %",
                      f"{last.fz_max_over_pct:+.2f} / {-last.fz_min_under_pct:+.2f} %",
                      f"{last.vc_max_over_pct:+.2f} % (line {last.vc_max_over_line})",
                      f"{last.cut_length_mm / 1000:.2f} m"))
-    return _table("Per tool (simulated)", ("tool", "cutter", "targets", "cutting time",
-                                            "fz in band", "fz extremes", "vc at most",
-                                            "cut length"), rows)
+    for tool, why in d.left:
+        rows.append((_tool_name(tool), "left as programmed", why, "", "", "", "", "", ""))
+    return _table("Tools", ("tool", "", "cutter, or why it is left", "targets",
+                            "cutting time", "fz in band", "fz extremes", "vc at most",
+                            "cut length"), rows, ("nowrap", "status"))
 
 
-def _summary_section(summary) -> str:
-    """The rewrite's summary, every field: scalars in one table, row lists below it."""
-    scalars, lists = [], []
-    for f in dataclasses.fields(summary):
+def _operations_table(d: ReportData) -> str:
+    return _table("Operations", ("operation", "tool", "lines", "", "what it is, or why it "
+                                 "is left", "time"), d.operations,
+                  ("", "nowrap", "nowrap", "status", "", "nowrap"))
+
+
+def _figures_by_name(summary) -> str:
+    """The rewrite's figures by the names ``rewrite --json`` gives them, folded away (for
+    scripts and support; everything a shop reads is in the tables above)."""
+    rows = []
+    for f in fields(summary):
         value = getattr(summary, f.name)
-        if f.name == "warnings":
-            continue
-        if isinstance(value, (tuple, list)):
-            if value:
-                lists.append((f.name, value))
-            continue
-        scalars.append((f.name.replace("_", " "), _fmt(value)))
-    parts = [_table("Rewrite summary: every field", ("field", "value"), scalars)]
-    for name, rows in lists:
-        rows = [_row(r) for r in rows]
-        width = max(len(r) for r in rows)
-        parts.append(_table(name.replace("_", " "), (), [r + ("",) * (width - len(r))
-                                                         for r in rows]))
-    return "\n".join(parts)
-
-
-def _row(item) -> tuple:
-    if dataclasses.is_dataclass(item):
-        return tuple(_fmt(getattr(item, f.name)) for f in dataclasses.fields(item))
-    if isinstance(item, (tuple, list)):
-        return tuple(_fmt(v) for v in item)
-    return (_fmt(item),)
+        if not isinstance(value, (tuple, list)):
+            rows.append((f.name.replace("_", " "), _fmt(value)))
+    table = "".join(f"<tr><td>{_e(k)}</td><td>{_e(v)}</td></tr>" for k, v in rows)
+    return (f"<details class='figures screen-only'><summary><h2>Rewrite summary: the figures "
+            f"by name, as rewrite --json gives them</h2></summary><table>{table}</table>"
+            "</details>")
 
 
 def _fmt(value) -> str:
@@ -348,136 +457,42 @@ def _warnings(warnings) -> str:
     return f"<section><h2>Warnings</h2><ul class=warn>{items}</ul>{more}</section>"
 
 
-def _section(section: ToolSection, k: int, n: int) -> tuple[str, list]:
-    """A tool's curves and 3D path: interactive divs, and their print images."""
-    from .plots import along_path_figure, png_bytes, toolpath_figure
+def _section(section: ToolSection, k: int, n: int, lite: bool) -> tuple[str, list]:
+    """A tool's curves and 3D path: interactive divs and their print images, or (lite)
+    the images alone."""
+    from .plots import along_path_figure, curves_json, path_json, png_bytes, toolpath_figure
 
-    name = f"T{section.tool}" if section.tool >= 0 else "the tool"
+    name = _tool_name(section.tool)
     runs = [(r.label, r.series, r.report) for r in section.runs]
     curves_id, path_id = f"curves-{k}", f"path-{k}"
     last = section.runs[-1].series
-    print_curves = png_bytes(along_path_figure(runs, max_points=CURVE_POINTS), dpi=90)
-    print_path = png_bytes(toolpath_figure(last, "s_rpm", max_points=PRINT_PATH_POINTS), dpi=90)
-    part = (f"<section class='plots along'><h2>Along the cut: {_e(name)}, {_e(section.cutter)}</h2>"
-            f"<div id={curves_id} class='plot curves screen-only'></div>{_img(print_curves)}"
-            f"</section><section class=plots><h2>Toolpath: {_e(name)}</h2>"
-            f"<p class=screen-only>Drag to turn, scroll to zoom; the menu colours the path by "
-            f"S, F, effective diameter or vc.</p>"
-            f"<div id={path_id} class='plot path screen-only'></div>{_img(print_path)}</section>")
-    figs = [(curves_id, _curves_json(section)), (path_id, _path_json(last, PATH_POINTS // n))]
-    return part, figs
+    curves_png = png_bytes(along_path_figure(runs, max_points=CURVE_POINTS,
+                                             size=(11, 11.5)), dpi=100 if lite else 72)
+    path_png = png_bytes(toolpath_figure(last, "s_rpm", max_points=PRINT_PATH_POINTS),
+                         dpi=100 if lite else 72)
+    shown = "" if lite else "class='plot {} screen-only'"
+    curves = _img(curves_png, lite) if lite else (
+        f"<div id={curves_id} {shown.format('curves')}></div>{_img(curves_png, lite)}")
+    path = _img(path_png, lite) if lite else (
+        f"<p class=screen-only>Drag to turn, scroll to zoom; the menu colours the path by "
+        f"S, F, effective diameter or vc.</p>"
+        f"<div id={path_id} {shown.format('path')}></div>{_img(path_png, lite)}")
+    note = ("fz and vc are scaled to their target's band; samples beyond the scale (a plunge, "
+            "a spindle catching up) are marked at the panel's edge, the extremes named above "
+            "it.")
+    part = (f"<section class='plots along'><h2>Along the cut: {_e(name)}, {_e(section.cutter)}"
+            f"</h2><p>{note}</p>{curves}</section><section class=plots><h2>Toolpath: "
+            f"{_e(name)}</h2>{path}</section>")
+    if lite:
+        return part, []
+    return part, [(curves_id, curves_json(runs, CURVE_POINTS)),
+                  (path_id, path_json(last, PATH_POINTS // n))]
 
 
-def _img(png: bytes) -> str:
-    return (f"<img class=print-only alt='' src='data:image/png;base64,"
+def _img(png: bytes, shown: bool) -> str:
+    cls = "figure" if shown else "print-only"
+    return (f"<img class={cls} alt='' src='data:image/png;base64,"
             f"{base64.b64encode(png).decode('ascii')}'>")
-
-
-def _array(values) -> dict:
-    """A plotly typed array: float32, base64 (a third of the JSON's digits)."""
-    a = np.ascontiguousarray(np.asarray(values, dtype="<f4"))
-    return {"dtype": "f4", "bdata": base64.b64encode(a.tobytes()).decode("ascii")}
-
-
-def _curves_json(section: ToolSection) -> str:
-    """S, F, fz and D_eff along the cut: four stacked panels sharing the cut length."""
-    from .plots import ALONG, cut_length_m, decimate
-
-    traces = []
-    for i, run in reversed(list(enumerate(section.runs))):
-        first = i == 0 and len(section.runs) > 1
-        x = cut_length_m(run.series)
-        for p, name in enumerate(ALONG):
-            xd, yd = decimate(x, getattr(run.series, name)[run.series.cutting],
-                              max_points=CURVE_POINTS)
-            traces.append({"type": "scatter", "mode": "lines",
-                           "x": _array(xd), "y": _array(yd), "xaxis": "x",
-                           "yaxis": f"y{p + 1 if p else ''}", "name": Path(run.label).name,
-                           "legendgroup": str(i), "showlegend": p == 0, "legendrank": i,
-                           "line": {"width": 1.6 if first else 1.0,
-                                    "dash": "dash" if first else "solid",
-                                    "color": "#1a1a1a" if first else _COLOURS[(i - 1) % 5]}})
-    target = section.runs[0].report
-    band = target.band_pct / 100.0
-    shapes = [{"type": "line", "xref": "paper", "x0": 0, "x1": 1, "yref": "y3",
-               "y0": target.fz_target_mm * k, "y1": target.fz_target_mm * k, "layer": "below",
-               "line": {"color": "#d62728", "width": 1.2 if k == 1 else 0.8,
-                        "dash": "solid" if k == 1 else "dot"}}
-              for k in (1 - band, 1.0, 1 + band)]
-    layout = {"height": 760, "margin": {"l": 70, "r": 20, "t": 40, "b": 50},
-              "legend": {"orientation": "h", "y": 1.06, "x": 0}, "shapes": shapes,
-              "xaxis": {"title": {"text": "cut length [m]"}, "anchor": "y4"},
-              "hovermode": "x unified"}
-    labels = ("S [RPM]", "F [mm/min]", "fz [mm]", "D_eff [mm]")
-    for p, label in enumerate(labels):
-        top = 1.0 - p * 0.25
-        layout[f"yaxis{p + 1 if p else ''}"] = {"domain": [top - 0.22, top],
-                                                "title": {"text": label}}
-    return json.dumps({"data": traces, "layout": layout, "config": _CONFIG})
-
-
-_COLOURS = ("#ff7f0e", "#1f77b4", "#2ca02c", "#9467bd", "#8c564b")
-_CONFIG = {"displaylogo": False, "responsive": True}
-
-
-def _colour_range(values: np.ndarray) -> tuple[float, float]:
-    """The colour scale's ends: the values' range, widened to at least 2 % of their size so
-    a constant S (one S per pass) reads as one colour on a plain scale, not as
-    1687.6-1688.4 RPM."""
-    finite = values[np.isfinite(values)]
-    if finite.size == 0:
-        return 0.0, 1.0
-    lo, hi = float(finite.min()), float(finite.max())
-    least = 0.02 * max(abs(lo), abs(hi), 1e-9)
-    if hi - lo < least:
-        mid = 0.5 * (lo + hi)
-        lo, hi = mid - 0.5 * least, mid + 0.5 * least
-    return lo, hi
-
-
-def _path_json(series: SimSeries, max_points: int) -> str:
-    """The cutting samples in 3D, evenly thinned, broken where the cut is interrupted;
-    a menu recolours them by S, F, D_eff or vc."""
-    idx = np.flatnonzero(series.cutting)
-    step = max(1, -(-idx.size // max(max_points, 1)))
-    keep = idx[::step]
-    brk = np.concatenate(([False], np.diff(keep) > step))  # not consecutive cut samples
-    pos = np.arange(keep.size) + np.cumsum(brk)
-    n = keep.size + int(brk.sum())
-
-    def gapped(values):
-        out = np.full(n, np.nan)
-        out[pos] = values[keep]
-        return out
-
-    xyz = [gapped(series.xyz_mm[:, j]) for j in range(3)]
-    colours = {key: gapped(getattr(series, key)) for key, _ in COLOR_BY}
-    first, label = COLOR_BY[0]
-    ranges = {key: _colour_range(colours[key]) for key, _ in COLOR_BY}
-    lo, hi = ranges[first]
-    trace = {"type": "scatter3d", "mode": "lines", "x": _array(xyz[0]), "y": _array(xyz[1]),
-             "z": _array(xyz[2]), "connectgaps": False, "hoverinfo": "x+y+z",
-             "line": {"width": 4, "color": _array(colours[first]), "colorscale": "Viridis",
-                      "cmin": lo, "cmax": hi,
-                      "showscale": True, "colorbar": {"title": {"text": label}}}}
-    buttons = [{"label": lab, "method": "restyle",
-                "args": [{"line.color": [_array(colours[key])],
-                          "line.cmin": [ranges[key][0]], "line.cmax": [ranges[key][1]],
-                          "line.colorbar.title.text": lab}]} for key, lab in COLOR_BY]
-    span = np.nanmax(np.vstack(xyz), axis=1) - np.nanmin(np.vstack(xyz), axis=1)
-    span = np.maximum(np.nan_to_num(span, nan=1.0), 1e-3)
-    ratio = span / span.max()
-    ratio[2] = max(ratio[2], 0.25)  # as the printed view: a flat part stretched to 1:4
-    layout = {"height": 640, "margin": {"l": 0, "r": 0, "t": 30, "b": 0},
-              "updatemenus": [{"buttons": buttons, "x": 0, "y": 1.08, "xanchor": "left",
-                               "direction": "right", "type": "buttons"}],
-              "scene": {"aspectmode": "manual",
-                        "aspectratio": dict(zip("xyz", map(float, ratio))),
-                        "xaxis": {"title": {"text": "X [mm]"}},
-                        "yaxis": {"title": {"text": "Y [mm]"}},
-                        "zaxis": {"title": {"text": "Z [mm]"}, "nticks": 4},
-                        "camera": {"eye": {"x": 0.95, "y": -1.2, "z": 0.75}}}}
-    return json.dumps({"data": [trace], "layout": layout, "config": _CONFIG})
 
 
 def _diff_section(d: ReportData) -> str:
@@ -505,7 +520,7 @@ def _diff_section(d: ReportData) -> str:
     head = (f"{t.changed} of {t.lines} lines changed (S in {t.s_changed}, F in "
             f"{t.f_changed}); the first {min(DIFF_ROWS, t.changed)}:")
     return (f"<section class=diff><h2>Changed blocks</h2><p>{_e(head)}</p><table class=code>"
-            f"<tr><th></th><th>{_e(Path(d.against).name)}</th><th></th>"
+            f"<tr><th class=n></th><th>{_e(Path(d.against).name)}</th><th class=n></th>"
             f"<th>{_e(Path(d.program).name)}</th></tr>{''.join(rows)}</table></section>")
 
 
@@ -525,34 +540,64 @@ def require_libraries() -> None:
                          "install \".[plot]\")")
 
 
-def page_path(index: Path, base: Path, program: Path) -> str:
-    """Where a batch file's page goes: mirrored in a folder named after the index page."""
-    import os
+_ROOT_MARK = os.sep + "." + os.sep  # ends the pages' folder in a page's path (rsync -R's mark)
 
-    return str(Path(index).with_suffix("") / (os.path.relpath(program, base) + ".html"))
+
+def page_path(index: Path, base: Path, program: Path) -> str:
+    """Where a batch file's page goes: mirrored in a folder named after the index page.
+
+    The path marks where that folder ends with a ``/./`` component (as rsync's
+    ``--relative`` does: the same file to the system), so :func:`write_file_page`, in a
+    worker, knows where the pages' shared plotly.js lies."""
+    root = str(Path(index).with_suffix(""))
+    return root + _ROOT_MARK + os.path.relpath(program, base) + ".html"
 
 
 def write_file_page(path: str, result, data: bytes, src: str, target: str, job,
-                    mesh) -> tuple[str, str]:
-    """One batch file's page: (path written, "") or ("", why not); never raises for the file."""
+                    mesh, lite: bool = False) -> tuple[str, str]:
+    """One batch file's page: (path written, "") or ("", why not); never raises for the file.
+
+    Its plotly.js is the pages' shared ``plotly.min.js`` (written once, by the first page
+    that needs it), where :func:`page_path` marks the pages' folder; embedded otherwise."""
     from .errors import NcoptError
     from .geometry import MeshIndex, load_stl
 
+    root, marked, _ = path.partition(_ROOT_MARK)
+    page_file = Path(os.path.normpath(path))
     try:
         index = MeshIndex(load_stl(mesh)) if mesh else None
-        page = render(from_rewrite(result, data.decode("latin-1"), src, target, job, index))
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        return str(write(path, page)), ""
+        report = from_rewrite(result, data.decode("latin-1"), src, target, job, index)
+        shared = None
+        if marked and not lite:
+            js = shared_plotly(Path(root))
+            shared = Path(os.path.relpath(js, page_file.parent)).as_posix()
+        page_file.parent.mkdir(parents=True, exist_ok=True)
+        return str(write(page_file, render(report, lite=lite, plotly_src=shared))), ""
     except NcoptError as exc:
         return "", exc.message
     except OSError as exc:
         return "", f"cannot write the report: {exc.strerror or exc}"
 
 
+def shared_plotly(folder: Path) -> Path:
+    """``folder/plotly.min.js``, written (atomically) unless it already holds this plotly.js."""
+    from plotly.offline import get_plotlyjs
+
+    from .fileio import write_output
+
+    js = get_plotlyjs().encode("utf-8")
+    target = folder / PLOTLY_FILE
+    try:
+        same = target.stat().st_size == len(js) and target.read_bytes() == js
+    except OSError:
+        same = False
+    if not same:
+        write_output(target, js, make_parents=True)
+    return target
+
+
 def render_index(reports, base: Path, index_path: str | Path) -> str:
     """The batch's index page: a row per file, linking to each file's page."""
-    import os
-
     folder = Path(index_path).resolve().parent
     rows, before, after = [], 0.0, 0.0
     for r in reports:
@@ -566,7 +611,7 @@ def render_index(reports, base: Path, index_path: str | Path) -> str:
         note = r.error or (f"no report: {r.report_error}" if r.report_error else "")
         rows.append(f"<tr><td>{link}</td><td>{_e(r.status)}</td><td>{r.blocks}</td>"
                     f"<td>{r.s_words}</td><td>{time}</td><td>{r.warnings}</td>"
-                    f"<td>{_e(note)}</td></tr>")
+                    f"<td>{_e(_planned(r))}</td><td>{_e(note)}</td></tr>")
     counts = {k: sum(r.status == k for r in reports) for k in ("ok", "unchanged", "failed")}
     total = (f"{counts['ok']} rewritten, {counts['unchanged']} unchanged, {counts['failed']} "
              f"failed, of {len(reports)} files; estimated cutting time of the rewritten ones "
@@ -574,16 +619,24 @@ def render_index(reports, base: Path, index_path: str | Path) -> str:
     body = (f"<header><h1>ncopt batch report</h1><p class=meta>{_e(base)} · ncopt "
             f"{__version__} · {_now()}</p></header><section><p>{_e(total)}</p><table>"
             "<tr><th>file</th><th>status</th><th>blocks</th><th>S words</th>"
-            "<th>cutting time (min)</th><th>warnings</th><th>note</th></tr>"
-            f"{''.join(rows)}</table></section>")
-    css = _TEMPLATE.read_text(encoding="utf-8")
+            "<th>cutting time (min)</th><th>warnings</th><th>operations planned</th>"
+            f"<th>note</th></tr>{''.join(rows)}</table></section>")
+    css = _TEMPLATE.read_text(encoding="utf-8") + _CSS
     return (f"<!DOCTYPE html>\n<html lang=en><head><meta charset=utf-8><title>ncopt batch "
             f"report</title><style>{css}</style></head>\n<body>\n{body}\n</body></html>\n")
 
 
+def _planned(r) -> str:
+    """``SCALLOP1 (1 of 13)``: the operations a file's rewrite planned."""
+    ops = getattr(r, "operations", ()) or ()
+    names = [name for name, planned, _ in ops if planned]
+    if not ops:
+        return ""
+    shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
+    return f"{shown or 'none'} ({len(names)} of {len(ops)})"
+
+
 def _relative(path: str, base: Path) -> str:
     """The path as found under the batch's folder (a symlink keeps its place in it)."""
-    import os
-
     rel = os.path.relpath(os.path.abspath(path), os.path.abspath(base))
     return path if rel.startswith("..") else rel

@@ -55,15 +55,15 @@ from .api import Job, nominal_cutting_data, read_text
 from .stamp import read_stamps, stamped_line
 from .contacts import (MAX_SAMPLES_PER_MOVE, centre_offsets, path_contacts_at_samples,
                        sample_axes, sample_points)
-from .errors import UsageError
+from .errors import NcoptError, UsageError
 from .geometry import MeshIndex, contacts_from_mesh, load_stl
 from .interp import MM_PER_INCH, ffill, interpret
 from .kinematics import tilt_deg
 from .model import Contacts, Cutter, CuttingData, Machine, Motion, Program, Toolpath
 from .tooltable import BALL, BULL, cutter_for, tool_table
 
-__all__ = ["LagStretch", "SimReport", "SimSeries", "simulate_file", "simulate_program",
-           "spindle_ramp"]
+__all__ = ["LagStretch", "SimReport", "SimSeries", "ToolsToSimulate", "simulate_file",
+           "simulate_program", "spindle_ramp", "tools_to_simulate"]
 
 # The spindle counts as "not at speed" when it is further than this from its command.
 _LAG_RPM = 0.5
@@ -146,6 +146,9 @@ class SimReport:
     lag: tuple = ()
     warnings: tuple = ()
     feed_moves_time_min: float = float("nan")  # every timed feed move (ncopt.times)
+    tool: int = -1  # the T number evaluated (-1: the program names none)
+    cutter: str = ""  # the cutter evaluated, "D16 ball, 2 teeth"
+    cutter_from: str = ""  # where it came from: "the options", "line 5: (...)", a stamp
 
     @property
     def spindle_lag_breaks_fz(self) -> bool:
@@ -231,7 +234,8 @@ def simulate_file(path: str | Path, job: Job, mesh_path: str | Path | None, *,
 def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = None, *,
                      path: str = "<input>", sample_mm: float = 0.1,
                      contacts: Contacts | None = None,
-                     band: float | None = None) -> tuple[SimReport, SimSeries]:
+                     band: float | None = None,
+                     read: tuple[Program, Toolpath] | None = None) -> tuple[SimReport, SimSeries]:
     """Replay a program on the machine model of ``job``.
 
     Parameters
@@ -255,6 +259,9 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
     band : float or None
         Relative fz band for ``fz_in_band_pct`` and the lag check (None: the band an
         ncopt stamp records, else 0.02).
+    read : (Program, Toolpath) or None
+        The program as :func:`tools_to_simulate` read it (``ToolsToSimulate.read``): the
+        same text with the same job's control, decimal point and kinematics, not read again.
 
     Returns
     -------
@@ -268,9 +275,11 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
     """
     if not sample_mm > 0:
         raise UsageError(f"sample spacing must be positive, got {sample_mm}", path)
-    prog = read_text(prog_text, path, job)
-    tp = interpret(prog, kinematics=job.kinematics)
-    cutter, tool_mask = _evaluated_tool(prog, tp, job, path)
+    if read is None:
+        prog = read_text(prog_text, path, job)
+        read = prog, interpret(prog, kinematics=job.kinematics)
+    prog, tp = read
+    cutter, tool_mask, number, source = _evaluated_tool(prog, tp, job, path)
     job = replace(job, cutter=cutter)
     moves = _move_table(prog, tp, job, tool_mask)
     planned = np.concatenate(([False], moves.candidate & (moves.target_rpm > 0)))
@@ -290,7 +299,8 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
     report = _report(path, moves, series, weight, mv, cut, band, sample_mm, s_words,
                      _warnings(path, tp, moves, job.machine, series)
                      + _coarse_moves(path, tp, moves, sample_mm))
-    return report, series
+    return replace(report, tool=number, cutter=describe_cutter(cutter),
+                   cutter_from=source), series
 
 
 # ---------------------------------------------------------------- moves and the spindle
@@ -379,15 +389,17 @@ def _stamp_of(prog: Program, tool: int):
     return found[0] if found else None
 
 
-def _evaluated_tool(prog: Program, tp: Toolpath, job: Job, path: str) -> tuple[Cutter, np.ndarray]:
-    """The cutter to evaluate and (nm,) bool: the moves made with it.
+def _evaluated_tool(prog: Program, tp: Toolpath, job: Job,
+                    path: str) -> tuple[Cutter, np.ndarray, int, str]:
+    """The cutter to evaluate, (nm,) bool: the moves made with it, its T number (-1: none)
+    and where the cutter came from.
 
-    One tool per simulation: ``job.tool``, else the program's only cutting tool.
+    One tool per simulation: ``job.tool``, else the program's only cutting tool
+    (:func:`tools_to_simulate` picks them in a program of several).
     Its cutter is ``job.cutter``, else read from the program's tool comments.
     """
     tool = tp.tool[1:]
-    feed = np.isin(tp.motion[1:], _FEED_MOTIONS) & tp.known[1:]
-    used = np.unique(tool[feed]).tolist()
+    used = _feed_tools(tp)
     if job.tool is not None:
         if job.tool not in used:
             raise UsageError(f"no feed moves with tool T{job.tool}; check --tool", path)
@@ -397,20 +409,95 @@ def _evaluated_tool(prog: Program, tp: Toolpath, job: Job, path: str) -> tuple[C
         raise UsageError(f"the program cuts with several tools ({listed}); simulate one at a "
                          "time with --tool N", path)
     mask = tool == used[0] if used else np.zeros(tool.shape, dtype=bool)
-    if job.cutter is not None:
-        return job.cutter, mask
     number = used[0] if used else -1
+    if job.cutter is not None:
+        return job.cutter, mask, number, "the options"
     stamp = _stamp_of(prog, number)
     if stamp is not None:  # the cutter ncopt planned with (mm, its teeth), as rewrite reads it
-        return stamp.cutter, mask
+        return stamp.cutter, mask, number, f"the ncopt stamp on line {stamp.line + 1}"
     if number in job.tool_library:
-        return job.tool_library[number], mask
+        return job.tool_library[number], mask, number, "the tool profiles"
     info = cutter_for(tool_table(prog), number, len(used))
     if info is None or info.kind not in (BALL, BULL):
         raise UsageError("the program's comments do not describe a ball or bull-nose cutter; "
                          "give --diameter (and --corner-radius for a bull-nose)", path)
     inch = tp.line_inch is not None and bool(np.any(tp.line_inch))
-    return info.cutter(info.teeth or job.teeth, MM_PER_INCH if inch else 1.0), mask
+    teeth = f"teeth from line {info.teeth_line}" if info.teeth else f"{job.teeth} teeth assumed"
+    return (info.cutter(info.teeth or job.teeth, MM_PER_INCH if inch else 1.0), mask, number,
+            f"line {info.line}: ({info.text.strip()}); {teeth}")
+
+
+def _feed_tools(tp: Toolpath) -> list:
+    """The T numbers of the program's known feed moves, in ascending order."""
+    feed = np.isin(tp.motion[1:], _FEED_MOTIONS) & tp.known[1:]
+    return np.unique(tp.tool[1:][feed]).tolist()
+
+
+def describe_cutter(cutter: Cutter) -> str:
+    """``D16 ball, 2 teeth``, ``D10 bull-nose r2, 4 teeth`` (mm)."""
+    kind = "ball" if cutter.is_ball else f"bull-nose r{cutter.corner_radius_mm:g}"
+    return f"D{cutter.diameter_mm:g} {kind}, {cutter.teeth} teeth"
+
+
+# ---------------------------------------------------------------- several tools
+
+
+@dataclass(frozen=True)
+class ToolsToSimulate:
+    """Which tools of a program to simulate, one simulation each.
+
+    tools : T numbers for ``Job.tool``, in program order; ``(None,)``: the program's only
+        tool (or ``Job.tool``), simulated as :func:`simulate_program` picks it
+    left : (T, why) the tools that cut but are not simulated: ncopt would plan none of
+        their operations
+    operations : ``ncopt.inspect.JudgedOperation`` per operation, as rewrite would split
+        and judge them (empty when not judged)
+    read : the program and its toolpath, for :func:`simulate_program`
+    """
+
+    tools: tuple
+    left: tuple = ()
+    operations: tuple = ()
+    read: tuple | None = None
+
+
+def tools_to_simulate(prog_text: str, job: Job, path: str = "<input>",
+                      judge: bool = False) -> ToolsToSimulate:
+    """The tools of a program to simulate: ``job.tool``, the only tool, or, in a program
+    that cuts with several, each tool ncopt would plan an operation of (as ``ncopt rewrite``
+    and ``ncopt inspect`` judge them), the others listed with why they are left.
+
+    ``judge``: judge the operations of a single-tool program too (for a report).
+    Raises UsageError where rewrite would (``--diameter`` on a program of several tools),
+    and when a program of several tools has none ncopt plans.
+    """
+    from .inspect import judge_operations
+
+    prog = read_text(prog_text, path, job)
+    tp = interpret(prog, kinematics=job.kinematics)
+    used = _feed_tools(tp)
+    if job.tool is not None or len(used) <= 1:
+        ops = ()
+        if judge:  # for the report's table only: the simulation does not need it
+            try:
+                ops = judge_operations(prog, tp, job, job.machine.max_feed_mm_min)
+            except NcoptError:
+                ops = ()
+        return ToolsToSimulate((job.tool,), (), ops, (prog, tp))
+    ops = judge_operations(prog, tp, job, job.machine.max_feed_mm_min)
+    planned = list(dict.fromkeys(o.tool for o in ops if o.planned))  # program order
+    left = []
+    for t in used:
+        if t in planned:
+            continue
+        why = list(dict.fromkeys(o.reason for o in ops if o.tool == t and o.reason))
+        left.append((t, "; ".join(why) or "no operation ncopt plans"))
+    if not planned:
+        listed = "; ".join(f"T{t}: {why}" for t, why in left)
+        raise UsageError(f"none of the tools the program cuts with is one ncopt plans "
+                         f"({listed}); simulate one with --tool N (and --diameter for its "
+                         "cutter)", path)
+    return ToolsToSimulate(tuple(planned), tuple(left), ops, (prog, tp))
 
 
 @dataclass(frozen=True)
