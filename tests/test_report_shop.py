@@ -201,7 +201,7 @@ def chromium_dom(page: Path, tmp_path: Path) -> str:
 
 def test_the_fz_panel_is_scaled_to_the_band_and_the_plunge_marked(bowl_page):
     """bowl.mpf plunges at the cutting feed, ``N112 Z0.000`` under ``N110 G1 Z3.000 F279``
-    (line 14 of the rewrite, after its stamp): a plunge's F is never raised, and the spindle
+    (line 19 of the rewrite, after its six stamp lines): a plunge's F is never raised, and the spindle
     already turns at 15000 RPM, so fz = 279 / (2 * 15000) = 0.0093 mm, -91 % of 0.1 mm.
     That one sample must not set the panel's scale: the band does."""
     _, html = bowl_page
@@ -214,7 +214,7 @@ def test_the_fz_panel_is_scaled_to_the_band_and_the_plunge_marked(bowl_page):
     marks = [t for t in fig["data"] if t["mode"] == "markers" and t["yaxis"] == "y3"]
     assert len(marks) == 1 and marks[0]["y"] == [pytest.approx(lo)]
     (hover,) = marks[0]["hovertext"]
-    assert hover.startswith("line 14: fz 0.0093 mm (-90.")
+    assert hover.startswith("line 19: fz 0.0093 mm (-90.")
     assert 279 / (2 * 15000) == pytest.approx(0.0093, abs=5e-5)
     assert any("vc [m/min]" == t for t in axes) and fig["layout"]["yaxis4"]["range"][1] > 0
 
