@@ -509,8 +509,12 @@ def guard_outputs(inputs, outputs, in_place=()) -> None:
 
 
 def _read_by(*programs, mesh=None, tools_file=None) -> list:
-    """(what, path) of every file a command reads: its programs, the mesh, the profile."""
-    return [*programs, ("mesh", mesh), ("profile file", tools_file)]
+    """(what, path) of every file a command reads: its programs, the mesh, the profile
+    files (--tools, and the ncopt.toml files found: the project's, the user's)."""
+    from .profiles import search_paths
+
+    return [*programs, ("mesh", mesh)] + [("profile file", p)
+                                          for p in search_paths(tools_file=tools_file)]
 
 
 def guard_batch(files, targets, report, pages, in_place, mesh, tools_file) -> None:

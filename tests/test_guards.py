@@ -84,6 +84,24 @@ def test_rewrite_report_never_lands_on_an_input_or_the_output(work, report_name,
     assert files_of(work) == before  # nothing read was touched, nothing written
 
 
+def test_no_output_lands_on_a_profile_file_read(work):
+    """--tools FILE and the project's ncopt.toml (found upward from the working folder)
+    are read by the run: writing the rewrite over them would lose the machine profiles."""
+    profile = "[machines.shop]\naccel_rad_s2 = 227\nmax_rpm = 15000\n"
+    (work / "ncopt.toml").write_text(profile)
+    (work / "tools.toml").write_text("[tools.ball6]\ndiameter_mm = 6\n")
+    before = files_of(work)
+    result = run(["rewrite", "dome.nc", "--diameter", "6", "--machine", "shop", "-o",
+                  "ncopt.toml"], work)
+    assert result.returncode == Exit.USAGE
+    assert result.stderr.decode().startswith(
+        f"ncopt.toml: -o names the profile file {work / 'ncopt.toml'}: writing it")
+    result = invoke(["rewrite", work / "dome.nc", *SPINDLE, "--tools", work / "tools.toml",
+                     "-o", work / "out.nc", "--report", work / "tools.toml"])
+    refused(result, work / "tools.toml", "--report names the profile file")
+    assert files_of(work) == before
+
+
 def test_a_hard_link_to_the_input_is_the_input(work):
     os.link(work / "dome.nc", work / "hard.nc")
     before = files_of(work)
