@@ -21,7 +21,8 @@ import threading
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
-from .errors import FileError, NcoptError, NothingToPlan, UsageError
+from .errors import (FileError, NcoptError, NothingToPlan, UsageError, ValueRangeError,
+                     from_program)
 from .fileio import (TMP_SUFFIX, clean_stale_temporaries, discard, hint, replace_in_place,
                      write_output)
 
@@ -179,6 +180,8 @@ def process_one(task: Task) -> FileReport:
     except FileError as exc:  # names the output, or the file replaced in place
         same = exc.path is not None and Path(exc.path) == Path(task.source)
         return _failed(task, exc.message if same else str(exc))
+    except ValueRangeError as exc:  # the job was checked: the program gave the value
+        return _failed(task, _short(from_program(exc, src)))
     except NcoptError as exc:
         return _failed(task, _short(exc))
     except Exception as exc:  # noqa: BLE001 - a bug on one file must not stop the batch

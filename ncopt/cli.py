@@ -11,6 +11,7 @@ SIGTERM) or a failed write to stdout ends it with one line on stderr and an exit
 # No `from __future__ import annotations` here: typer evaluates every string annotation when
 # it builds the commands, a third of the time `ncopt --help` took.
 import functools
+import math
 import os
 import re
 import signal
@@ -24,9 +25,10 @@ from typer.core import TyperGroup
 
 from . import __version__
 from .errors import (FileError, MeshError, NcoptError, NcParseError, NothingToPlan,
-                     PlanningError, UsageError, VerificationError)
-from .stdio import (command_faults, count, err, interrupt, read_programs, say, set_color,
-                    stages, stderr_console, styled, write_stdout)
+                     PlanningError, UsageError, ValueRangeError, VerificationError,
+                     from_program)
+from .stdio import (command_faults, count, err, interrupt, read_programs, require_stdout,
+                    say, set_color, stages, stderr_console, styled, write_stdout)
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -95,17 +97,26 @@ Diameter = Annotated[Optional[str], typer.Option(
     "from the program's tool comments).")]
 CornerRadius = Annotated[Optional[str], typer.Option(
     "--corner-radius", help="Bull-nose corner radius r: mm, or with a unit (default: a ball).")]
-Teeth = Annotated[int, typer.Option("--teeth", help="Number of teeth z (matters with --fz).")]
+# Ranges: typer's own min= where the bound is closed (shown by -h as [x>=1], and a value
+# outside, NaN included, is refused before the command runs); an open bound (above 0) is
+# written in the help and checked, as every finite bound is, by make_job against
+# ncopt.model.LIMITS, which the model's objects and the profiles share.
+Teeth = Annotated[int, typer.Option("--teeth", min=1,
+                                    help="Number of teeth z (matters with --fz).")]
 Vc = Annotated[Optional[float], typer.Option(
-    "--vc", help="Cutting speed target, m/min (default: the program's S at the nominal D).")]
+    "--vc", help="Cutting speed target, m/min, above 0 (default: the program's S at the "
+    "nominal D).")]
 Fz = Annotated[Optional[float], typer.Option(
-    "--fz", help="Feed per tooth target, mm (default: the program's F / (z S)).")]
+    "--fz", help="Feed per tooth target, mm, above 0 (default: the program's F / (z S)).")]
 Accel = Annotated[Optional[float], typer.Option(
-    "--accel", help="Spindle acceleration, rad/s^2 (default: from --machine).")]
+    "--accel", help="Spindle acceleration, rad/s^2, finite and above 0 (default: from "
+    "--machine).")]
 MaxRpm = Annotated[Optional[float], typer.Option(
-    "--max-rpm", help="Highest spindle speed, RPM (default: from --machine).")]
-MinRpm = Annotated[Optional[float], typer.Option("--min-rpm", help="Lowest spindle speed, RPM.")]
-MaxFeed = Annotated[Optional[float], typer.Option("--max-feed", help="Highest feed, mm/min.")]
+    "--max-rpm", min=1, help="Highest spindle speed, RPM, finite (default: from --machine).")]
+MinRpm = Annotated[Optional[float], typer.Option(
+    "--min-rpm", min=0, help="Lowest spindle speed, RPM, below --max-rpm.")]
+MaxFeed = Annotated[Optional[float], typer.Option(
+    "--max-feed", help="Highest feed, mm/min, above 0 (inf: no limit).")]
 MachineName = Annotated[Optional[str], typer.Option(
     "--machine", help="A machine profile (see ncopt profiles).")]
 ToolsFile = Annotated[Optional[Path], typer.Option(
@@ -117,14 +128,15 @@ Material = Annotated[Optional[str], typer.Option(
 Planner = Annotated[str, typer.Option("--planner", help="lookahead or forward.")]
 ToolPoint = Annotated[str, typer.Option("--tool-point", help="Programmed point: tip or center.")]
 MinStep = Annotated[float, typer.Option(
-    "--min-rpm-step", help="Emit S only when it changes by at least this, RPM.")]
-Tool = Annotated[Optional[int], typer.Option("--tool", help="Plan only this T number.")]
-Rapid = Annotated[Optional[float], typer.Option("--rapid", help="Rapid traverse rate, mm/min.")]
+    "--min-rpm-step", help="Emit S only when it changes by at least this, RPM, above 0.")]
+Tool = Annotated[Optional[int], typer.Option("--tool", min=0, help="Plan only this T number.")]
+Rapid = Annotated[Optional[float], typer.Option(
+    "--rapid", help="Rapid traverse rate, mm/min, finite and above 0.")]
 FzPolicy = Annotated[str, typer.Option(
     "--fz-policy", help="centred: F keeps fz within the band both ways (default); below: fz "
     "never above its target (slower).")]
 FzBand = Annotated[float, typer.Option("--fz-band", help="Allowed fz deviation while the "
-                                       "spindle ramps, percent.")]
+                                       "spindle ramps, percent, above 0 and below 50.")]
 Control = Annotated[Optional[str], typer.Option(
     "--dialect", "--control", help="The control the program is for: sinumerik, fanuc, "
     "linuxcnc, grbl, heidenhain-iso or generic (default: detected from the program's marks).")]
@@ -141,7 +153,7 @@ AllowanceAlong = Annotated[str, typer.Option(
     "--allowance-along", help="normal (default) or axis: the remaining material is offset "
     "along the surface normal or the tool axis (finishing layers made by shifting Z).")]
 SInterval = Annotated[float, typer.Option(
-    "--min-s-interval-ms", help="Least time between S words, ms (Sinumerik PLC).")]
+    "--min-s-interval-ms", min=0, help="Least time between S words, ms (Sinumerik PLC).")]
 Operations = Annotated[Optional[str], typer.Option(
     "--operations", help="Plan these operations (names as the program's comments give "
     "them, comma-separated), or all; default: the finishing operations ncopt recognises.")]
@@ -332,6 +344,15 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
         raise UsageError(f"--tool-point must be tip or center, not {tool_point!r}")
     if (diameter is not None and diameter <= 0) or teeth <= 0 or accel <= 0 or max_rpm <= 0:
         raise UsageError("--diameter, --teeth, --accel and --max-rpm must be positive")
+    check_numbers([("--diameter", "diameter_mm", diameter),
+                   ("--corner-radius", "corner_radius_mm", corner_radius),
+                   ("--teeth", "teeth", teeth), ("--vc", "vc_m_min", vc), ("--fz", "fz_mm", fz),
+                   ("--min-rpm", "min_rpm", min_rpm), ("--max-feed", "max_feed_mm_min", max_feed),
+                   ("--rapid", "rapid_mm_min", rapid),
+                   ("--min-rpm-step", "min_rpm_step", min_rpm_step),
+                   ("--min-s-interval-ms", "min_s_interval_ms", min_s_interval_ms)]
+                  + ([("--accel", "accel_rad_s2", accel), ("--max-rpm", "max_rpm", max_rpm)]
+                     if accel == accel or max_rpm == max_rpm else []))
     if corner_radius is not None and (diameter is None or not 0 < corner_radius <= diameter / 2 + 1e-12):
         raise UsageError("--corner-radius needs --diameter and must be above 0 and at most "
                          "half the diameter")
@@ -339,8 +360,10 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
         raise UsageError("give both --vc and --fz, or neither (then the program's S and F set them)")
     if vc is not None and (vc <= 0 or fz <= 0):
         raise UsageError("--vc and --fz must be positive")
-    if min_rpm > max_rpm:
-        raise UsageError("--min-rpm is above --max-rpm")
+    if min_rpm >= max_rpm:  # (a NaN max_rpm, no spindle for inspect, passes)
+        raise UsageError(f"--min-rpm is {'above' if min_rpm > max_rpm else 'equal to'} "
+                         f"--max-rpm ({min_rpm:g} and {max_rpm:g} RPM): the lowest spindle "
+                         "speed must be below the highest")
     if fz_policy not in ("centred", "below"):
         raise UsageError(f"--fz-policy must be centred or below, not {fz_policy!r}")
     if not 0 < fz_band < 50:
@@ -352,8 +375,6 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
     if decimal_point is not None and decimal_point not in DECIMAL_POINT_CONVENTIONS:
         raise UsageError(f"--decimal-point must be one of {', '.join(DECIMAL_POINT_CONVENTIONS)}, "
                          f"not {decimal_point!r}")
-    if min_s_interval_ms < 0:
-        raise UsageError("--min-s-interval-ms cannot be negative")
     if method not in ("contact", "material"):
         raise UsageError(f"--method must be contact or material, not {method!r}")
     if allowance_along not in ("normal", "axis"):
@@ -362,6 +383,14 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
         raise UsageError("--ap must be positive")
     if not stock >= 0:
         raise UsageError("--stock cannot be negative")
+    if not math.isfinite(ap) or not math.isfinite(stock):
+        raise UsageError(f"--{'ap' if not math.isfinite(ap) else 'stock'} must be a finite "
+                         "length")
+    names = None if operations is None else tuple(
+        o.strip() for o in operations.split(",") if o.strip())
+    if names == ():
+        raise UsageError(f"--operations takes operation names separated by commas, or all; "
+                         f"not {operations!r}")
     if shape is not None and shape not in ("ball", "bull-nose"):
         raise UsageError(f"--shape must be ball or bull-nose, not {shape!r}")
     if shape == "bull-nose" and corner_radius is None:
@@ -379,11 +408,23 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
                tool=tool, teeth=teeth, control=control, control_from=control_from,
                method=Method(method, ap, allowance_along), decimal_point=decimal_point,
                tool_library={k: c for k, (c, _) in profiles.tools.items() if isinstance(k, int)},
-               operations=tuple(o.strip() for o in operations.split(",")) if operations else None,
+               operations=names,
                shape_named=shape is not None or corner_radius is not None or cutter is not None,
                stock_mm=stock, diameter_bare=bare, kinematics=kinematics,
                machine_name=name if m is not None and accel == m.accel_rad_s2
                and max_rpm == m.max_rpm else None)
+
+
+def check_numbers(values) -> None:
+    """Refuse (UsageError, exit 2) an option's number outside its range, naming the option
+    and the range: ``values`` holds (option, key of ncopt.model.LIMITS, value or None)."""
+    from .model import LIMITS
+
+    for option, key, value in values:
+        bounds = LIMITS[key]
+        if value is not None and not bounds.holds(value):
+            shown = f"{value:g}" if isinstance(value, float) else repr(value)
+            raise UsageError(f"{option} must be {bounds.describe()}, not {shown}")
 
 
 def _job_options(values: dict) -> dict:
@@ -427,10 +468,14 @@ def rewrite(
         raise UsageError("--check writes nothing: leave out -o and --report")
     _check_report(report)
     target = None if check else output_file(output, input)
+    guard_outputs(_read_by(("program", input), mesh=mesh, tools_file=tools_file),
+                  [("-o", target), ("--report", report)])
     [data] = read_programs([input])
     try:
         with stages(quiet or as_json) as show:
             result = rewrite_file(input, job, mesh_path=mesh, data=data, progress=show)
+    except ValueRangeError as exc:  # the options were checked: the program gave the value
+        raise from_program(exc, input) from None
     except NothingToPlan as exc:
         if check:  # the rewrite would leave the program as it is
             if not quiet:
@@ -456,6 +501,31 @@ def rewrite(
         say(json.dumps(result.summary.to_dict(), indent=2))
     elif not quiet:
         print_summary(result.summary, err)
+
+
+def guard_outputs(inputs, outputs, in_place=()) -> None:
+    """:func:`ncopt.fileio.guard_outputs`, imported when a command runs (not for -h)."""
+    from . import fileio
+
+    fileio.guard_outputs(inputs, outputs, in_place)
+
+
+def _read_by(*programs, mesh=None, tools_file=None) -> list:
+    """(what, path) of every file a command reads: its programs, the mesh, the profile
+    files (--tools, and the ncopt.toml files found: the project's, the user's)."""
+    from .profiles import search_paths
+
+    return [*programs, ("mesh", mesh)] + [("profile file", p)
+                                          for p in search_paths(tools_file=tools_file)]
+
+
+def guard_batch(files, targets, report, pages, in_place, mesh, tools_file) -> None:
+    """A batch's outputs (the rewrites, the report and its pages) checked against its
+    inputs, one another and, in place, the programs' backups (ncopt.fileio.guard_outputs)."""
+    outputs = [] if in_place else [("-o", t) for t in targets]
+    outputs += [("--report", report)] + [("--report (a program's page)", p) for p in pages]
+    guard_outputs([("program", f) for f in files] + _read_by(mesh=mesh, tools_file=tools_file),
+                  outputs, in_place=files if in_place else ())
 
 
 def _check_verdict(name: str, data: bytes, text: bytes, summary: "Summary", quiet: bool,
@@ -587,7 +657,8 @@ def batch(
     inputs: Annotated[str, typer.Argument(help="A folder (searched recursively) or a glob.")],
     output: Annotated[Optional[Path], typer.Option("-o", "--output", help="Output folder; "
                                                    "subfolders are mirrored.")] = None,
-    jobs: Annotated[int, typer.Option("--jobs", "-j", help="Parallel processes.")] = 0,
+    jobs: Annotated[int, typer.Option("--jobs", "-j", min=0, help="Parallel processes (0: "
+                                      "one per CPU).")] = 0,
     in_place: Annotated[bool, typer.Option("--in-place", help="Replace the originals, each "
                                            "kept as NAME.bak (NAME.1.bak, ... after it).")] = False,
     report: Annotated[Optional[Path], typer.Option("--report", help="Write a report: JSON "
@@ -618,13 +689,15 @@ def batch(
     if not files:
         say(f"ncopt: no NC programs found in {inputs}")
         raise typer.Exit(int(Exit.NOTHING_DONE))
-    if output is not None:
-        prepare_output_folder(output)
     if html:
         from .report import page_path
+    pages = [page_path(report, base, f) if html else None for f in files]
+    guard_batch(files, targets, report, pages, in_place, mesh, tools_file)
+    if output is not None:
+        prepare_output_folder(output)
     tasks = [Task(str(f), str(t), job, None if mesh is None else str(mesh), in_place,
-                  str(page_path(report, base, f)) if html else None)
-             for f, t in zip(files, targets)]
+                  None if page is None else str(page))
+             for f, t, page in zip(files, targets, pages)]
     view = BatchView(stderr_console(), files, quiet=quiet)
     try:
         with view:
@@ -670,6 +743,8 @@ def report(
 
     job = make_job(**_job_options(locals()))
     _check_report(output)
+    guard_outputs(_read_by(("program", program), ("original", against), mesh=mesh,
+                           tools_file=tools_file), [("-o", output)])
     names = [program] + ([against] if against else [])
     data = read_programs(names)
     text = data[0].decode("latin-1")
@@ -712,7 +787,12 @@ def simulate(
     from .simulate import tools_to_simulate
 
     _check_outputs(color_by, csv, plot, plot_path)
+    if as_json:
+        require_stdout("give --csv FILE, or leave out --json for the summary on stderr")
     job = make_job(**_job_options(locals()))
+    guard_outputs(_read_by(("program", program), ("program compared", against), mesh=mesh,
+                           tools_file=tools_file),
+                  [("--csv", csv), ("--plot", plot), ("--plot-toolpath", plot_path)])
     names = ([against] if against else []) + [program]
     programs = read_programs(names)
     with stages(quiet or as_json) as show:
@@ -751,9 +831,12 @@ def _simulate_one(name, data, job, index, sample, judged_band, read=None):
     """One program replayed: (name, series, report)."""
     from .simulate import simulate_program
 
-    report, series = simulate_program(data.decode("latin-1"), job, index, path=name,
-                                      sample_mm=sample, read=read,
-                                      band=None if judged_band is None else judged_band / 100.0)
+    try:
+        report, series = simulate_program(
+            data.decode("latin-1"), job, index, path=name, sample_mm=sample, read=read,
+            band=None if judged_band is None else judged_band / 100.0)
+    except ValueRangeError as exc:  # the options were checked: the program gave the value
+        raise from_program(exc, name) from None
     return name, series, report
 
 
@@ -874,9 +957,12 @@ def inspect(
 
     job = make_job(**_job_options(locals()), spindle_needed=False)
     [data] = read_programs([program])
-    info = inspect_text(data.decode("latin-1"), program, dialect=job.control,
-                        decimal_point=job.decimal_point, kinematics=job.kinematics,
-                        max_feed_mm_min=job.machine.max_feed_mm_min, job=job)
+    try:
+        info = inspect_text(data.decode("latin-1"), program, dialect=job.control,
+                            decimal_point=job.decimal_point, kinematics=job.kinematics,
+                            max_feed_mm_min=job.machine.max_feed_mm_min, job=job)
+    except ValueRangeError as exc:  # the options were checked: the program gave the value
+        raise from_program(exc, program) from None
     with listing():  # `| head` ends it quietly
         if as_json:
             import json
@@ -906,6 +992,7 @@ def diff(
     if a == b:
         return
     if not quiet:
+        require_stdout("use -q to learn from the exit code alone whether they differ")
         show_diff(original, rewritten, a.decode("latin-1").splitlines(),
                   b.decode("latin-1").splitlines(), plain=plain, pager=not no_pager)
     raise typer.Exit(DIFFERENT)

@@ -62,6 +62,20 @@ class UsageError(NcoptError):
     """Options that contradict each other or are missing."""
 
 
+class ValueRangeError(UsageError, ValueError):
+    """A value outside the range it may take (a machine's, a cutter's, the cutting data's,
+    an option's); names the value and the range.  A ValueError too, as Python's own checks
+    of a value are, for code that builds ncopt's objects itself."""
+
+
+def from_program(exc: ValueRangeError, path: str | None) -> "PlanningError":
+    """A value out of range met while a program is planned (the options were checked
+    before): it comes from the program, its S and F words (``F0.0001`` gives fz 0) or its
+    ncopt stamp.  The error to report instead, located at the program (exit 5)."""
+    return PlanningError(f"{exc.message}, from the program's own S and F words or its ncopt "
+                         "stamp: check them, or give --vc and --fz", path)
+
+
 class VerificationError(NcoptError):
     """A rewrite failed its own safety checks: nothing is written."""
 

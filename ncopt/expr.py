@@ -66,51 +66,108 @@ class Params:
     def key(self, node: Tree) -> object:
         """Parameter key (int or lower-case name) addressed by a param node."""
         if node.data == "named_param":
-            return str(node.children[0])[1:-1].strip().lower().replace(" ", "")
+            return _name(node)
         if node.data == "num_param":
-            number = float(node.children[0])
-        else:
-            number = self.eval(node.children[0])
-        index = int(round(number))
-        if not is_variable(index):
-            raise NcoptError(f"variable number {index} is out of the range of every control "
-                             "(LinuxCNC #1-#5601: \"Parameter number out of range\"; Fanuc #0-"
-                             "#89999, #98000-#98499, #100000-#199999, #900000-#999999)")
-        return index
+            return _index(float(node.children[0]))
+        return _index(self.eval(node.children[0]))
 
     def get(self, node: Tree) -> float:
-        key = self.key(node)
+        return self._value_of(self.key(node))
+
+    def _value_of(self, key) -> float:
         if key == NULL_VARIABLE or key not in self.values:
             raise Unknown(key)  # a vacant (null) variable is no number either
         return self.values[key]
 
     def eval(self, node) -> float:
-        """Value of an expression tree; raises :class:`Unknown`."""
-        if isinstance(node, Token):
-            return float(node)
-        kind = node.data
-        if kind in ("number",):
-            return float(node.children[0])
-        if kind in ("num_param", "named_param", "ind_param"):
-            return self.get(node)
-        if kind == "unop":
-            value = self.eval(node.children[1])
-            return -value if str(node.children[0]) == "-" else value
-        if kind == "binop":
-            left, op, right = node.children
-            return _BINOPS[str(op).upper()](self.eval(left), self.eval(right))
-        if kind == "call":
-            return _FUNCS[str(node.children[0]).upper()](self.eval(node.children[1]))
-        if kind == "atan2":
-            return math.degrees(math.atan2(self.eval(node.children[1]), self.eval(node.children[3])))
-        if kind == "exists":
-            target = node.children[1]
-            if target.data == "named_param":
-                return float(self.key(target) in self.values)
-            number = float(target.children[0]) if target.data == "num_param" \
-                else self.eval(target.children[0])
-            index = int(round(number))  # EXISTS[#99999] is false, not an error
-            return float(index != NULL_VARIABLE and is_variable(index) and index in self.values)
-        if len(node.children) == 1:
-            return self.eval(node.children[0])
-        raise Unknown(kind)
+        """Value of an expression tree; raises :class:`Unknown`, and OverflowError where
+        the value is no finite number (``[10**400]``, ``[1e308*10]``: no control holds it).
+
+        The tree is walked with a stack of its own, not by recursion: a program's
+        ``#1=[1+1+...]`` of 50,000 terms is a tree 50,000 deep."""
+        value = _walk(self, node)
+        if not math.isfinite(value):
+            raise OverflowError(f"the value is {value}, not a finite number")
+        return value
+
+
+def _name(node: Tree) -> str:
+    return str(node.children[0])[1:-1].strip().lower().replace(" ", "")
+
+
+def _index(number: float) -> int:
+    index = int(round(number))
+    if not is_variable(index):
+        raise NcoptError(f"variable number {index} is out of the range of every control "
+                         "(LinuxCNC #1-#5601: \"Parameter number out of range\"; Fanuc #0-"
+                         "#89999, #98000-#98499, #100000-#199999, #900000-#999999)")
+    return index
+
+
+def _operands(node) -> list:
+    """The subtrees whose values ``node``'s value is computed from, in order."""
+    if isinstance(node, Token):
+        return []
+    kind, children = node.data, node.children
+    if kind in ("number", "num_param", "named_param"):
+        return []
+    if kind == "ind_param":
+        return [children[0]]
+    if kind in ("unop", "call"):
+        return [children[1]]
+    if kind == "binop":
+        return [children[0], children[2]]
+    if kind == "atan2":
+        return [children[1], children[3]]
+    if kind == "exists":
+        target = children[1]
+        return [target.children[0]] if target.data == "ind_param" else []
+    if len(children) == 1:
+        return [children[0]]
+    raise Unknown(kind)
+
+
+def _apply(params: Params, node, args: list) -> float:
+    """``node``'s value from its operands' values ``args``."""
+    if isinstance(node, Token):
+        return float(node)
+    kind, children = node.data, node.children
+    if kind == "number":
+        return float(children[0])
+    if kind in ("num_param", "named_param"):
+        return params.get(node)
+    if kind == "ind_param":
+        return params._value_of(_index(args[0]))
+    if kind == "unop":
+        return -args[0] if str(children[0]) == "-" else args[0]
+    if kind == "binop":
+        return _BINOPS[str(children[1]).upper()](args[0], args[1])
+    if kind == "call":
+        return _FUNCS[str(children[0]).upper()](args[0])
+    if kind == "atan2":
+        return math.degrees(math.atan2(args[0], args[1]))
+    if kind == "exists":
+        target = children[1]
+        if target.data == "named_param":
+            return float(_name(target) in params.values)
+        number = float(target.children[0]) if target.data == "num_param" else args[0]
+        index = int(round(number))  # EXISTS[#99999] is false, not an error
+        return float(index != NULL_VARIABLE and is_variable(index) and index in params.values)
+    return args[0]  # a node of one child stands for it
+
+
+def _walk(params: Params, root) -> float:
+    """The value of ``root``, its tree walked in post-order with an explicit stack."""
+    stack: list = [(root, None)]
+    values: list[float] = []
+    while stack:
+        node, operands = stack.pop()
+        if operands is None:
+            operands = _operands(node)
+            stack.append((node, operands))
+            stack.extend((child, None) for child in reversed(operands))
+            continue
+        args = values[len(values) - len(operands):]
+        del values[len(values) - len(operands):]
+        values.append(_apply(params, node, args))
+    return values[0]

@@ -13,7 +13,16 @@
   original, and later versions follow in order): no backup is ever overwritten or
   removed, and none is made of a version a backup already holds byte for byte.  An
   exclusive lock on the file and a compare with the bytes that were planned make two
-  runs at once safe: a file that changed since it was read is left as it is.
+  runs at once safe: a file that changed since it was read is left as it is.  Only a
+  regular file counts as a backup: a ``NAME.bak`` that is a symbolic link (to the program
+  itself, say) holds nothing, and a backup is given its name by a hard link, which never
+  follows or replaces a link that has the name already.
+* Every file a run writes is checked before any work starts (:func:`guard_outputs`):
+  never one of the run's inputs (the program, the original it is compared with, the
+  mesh, the profile file; stdin read from a file), compared by device and inode through
+  links; never another output of the same run; never a backup's name.
+* A FIFO given as input that no program writes into is refused after
+  :data:`FIFO_WAIT_S` seconds, rather than waited on for ever.
 """
 
 from __future__ import annotations
@@ -21,18 +30,20 @@ from __future__ import annotations
 import errno
 import os
 import re
+import select
 import stat
 import sys
 import tempfile
 import time
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator
+from typing import Iterable, Iterator
 
 from .errors import FileError, UsageError
 
 TMP_SUFFIX = ".ncopt-tmp"
 STALE_AFTER_S = 3600.0  # a temporary whose writer cannot be asked is stale after an hour
+FIFO_WAIT_S = 10.0  # a FIFO given as input with no writer is refused after this long
 _TMP_PID = re.compile(r"\.(\d+)-[a-z0-9_]+" + re.escape(TMP_SUFFIX) + "$")
 _HINTS = {errno.ENOENT: "check the path", errno.EACCES: "check its permissions",
           errno.EPERM: "check its permissions", errno.EROFS: "the file system is read-only",
@@ -56,9 +67,38 @@ def read_input(name: str) -> bytes:
         except OSError as exc:
             raise FileError(f"cannot read standard input: {exc.strerror}", "<stdin>") from None
     try:
+        if _stat_kind(name) == stat.S_IFIFO and os.name == "posix":
+            return _read_fifo(name)
         return Path(name).read_bytes()
     except OSError as exc:
         raise FileError(f"cannot read the file: {exc.strerror}; {hint(exc)}", name) from None
+
+
+def _read_fifo(name: str) -> bytes:
+    """A FIFO's bytes (a named pipe, or a shell's ``<(command)``), refused when no program
+    has written into it, nor holds it open to write, after :data:`FIFO_WAIT_S`: opening
+    it for reading would otherwise wait for a writer for ever."""
+    fd = os.open(name, os.O_RDONLY | os.O_NONBLOCK)  # never waits for a writer
+    try:
+        poller = select.poll()
+        poller.register(fd, select.POLLIN | select.POLLHUP)
+        first = b""
+        if not poller.poll(int(FIFO_WAIT_S * 1000)):
+            try:
+                first = os.read(fd, 1 << 16)
+            except BlockingIOError:  # a writer holds it open, nothing written yet: wait
+                first = None
+            if first == b"":
+                raise FileError(f"is a FIFO (named pipe) that nothing wrote into for "
+                                f"{FIFO_WAIT_S:g} s; start the program that writes it "
+                                "first, or give a file", name)
+        os.set_blocking(fd, True)
+        chunks = [first] if first else []
+        while chunk := os.read(fd, 1 << 20):
+            chunks.append(chunk)
+        return b"".join(chunks)
+    finally:
+        os.close(fd)
 
 
 def output_file(output: str | None, input_name: str) -> Path | None:
@@ -93,6 +133,89 @@ def same_file(a: str | Path, b: str | Path) -> bool:
         return os.path.samefile(a, b)
     except OSError:
         return False
+
+
+def identity(path: str | Path) -> tuple[int, int] | None:
+    """The file a path names, (device, inode), through links; None where there is none
+    (or it is no regular file: a device or a FIFO is written into, never replaced)."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):
+        return None
+    return (st.st_dev, st.st_ino) if stat.S_ISREG(st.st_mode) else None
+
+
+def stdin_identity() -> tuple[int, int] | None:
+    """The file stdin reads (``ncopt rewrite - < FILE``), or None (a pipe, a terminal)."""
+    try:
+        st = os.fstat(sys.stdin.fileno())
+    except (OSError, ValueError, AttributeError):
+        return None
+    return (st.st_dev, st.st_ino) if stat.S_ISREG(st.st_mode) else None
+
+
+def guard_outputs(inputs: Iterable[tuple[str, object]], outputs: Iterable[tuple[str, object]],
+                  in_place: Iterable[Path] = ()) -> None:
+    """Refuse, before any work, a run that would write over what it reads or writes twice.
+
+    ``inputs``: (what, path) of every file the run reads (``-``: stdin; None: not given);
+    ``outputs``: (option, path) of every file it writes (None and ``-`` are stdout or not
+    given); ``in_place``: programs replaced in place (their backups are written beside
+    them).  An output may not be an input (the same file, through links and hard links),
+    nor another output, nor one of the names a backup of ``in_place`` takes
+    (``NAME.bak``, ``NAME.1.bak``, ...).  Raises UsageError naming the output.
+    """
+    read: dict[tuple, tuple[str, str]] = {}
+    for what, path in inputs:
+        if path is None:
+            continue
+        key = stdin_identity() if str(path) == "-" else identity(path)
+        if key is not None:
+            read.setdefault(key, (what, "-" if str(path) == "-" else str(path)))
+    replaced: dict[str, list[str]] = {}  # folder -> names of the programs replaced there
+    for p in map(Path, in_place):
+        replaced.setdefault(_real(p.parent), []).append(p.name)
+    written: dict[object, str] = {}
+    for option, path in outputs:
+        if path is None or str(path) == "-":
+            continue
+        key = identity(path)
+        if key is not None and key in read:
+            what, name = read[key]
+            shown = ("the file standard input reads the program from" if name == "-"
+                     else f"the {what} {name}")
+            raise UsageError(f"{option} names {shown}: writing it would destroy what ncopt "
+                             "reads; write to another file", str(path))
+        if _stat_kind(path) not in (None, stat.S_IFREG):  # a device, a FIFO: written into
+            continue
+        real = Path(_real(path))
+        if any(_is_backup_name(real.name, name) for name in replaced.get(str(real.parent), ())):
+            raise UsageError(f"{option} names a backup ({real.name}) of a program this run "
+                             "replaces in place: a backup is never overwritten; write to "
+                             "another file", str(path))
+        for k in (key, str(real)):
+            if k is not None and k in written:
+                raise UsageError(f"{option} and {written[k]} name the same file: one would "
+                                 "replace the other; give each its own", str(path))
+        for k in (key, str(real)):
+            if k is not None:
+                written[k] = option
+
+
+def _is_backup_name(name: str, program: str) -> bool:
+    """Whether ``name`` is one of the names a backup of ``program`` takes."""
+    return re.fullmatch(re.escape(program) + r"(?:\.\d+)?\.bak", name) is not None
+
+
+def _real(path) -> str:
+    return os.path.realpath(os.path.abspath(path))
+
+
+def _stat_kind(path) -> int | None:
+    try:
+        return stat.S_IFMT(os.stat(path).st_mode)
+    except (OSError, ValueError):
+        return None
 
 
 def write_output(target: Path, data: bytes, make_parents: bool = False) -> None:
@@ -162,7 +285,8 @@ def replace_in_place(path: Path, planned_from: bytes, data: bytes) -> Path | Non
 
 
 def backups_of(path: Path) -> list[Path]:
-    """The backups ncopt keeps of a program, oldest first: NAME.bak, NAME.1.bak, ..."""
+    """The names of ncopt's backups of a program, oldest first: NAME.bak, NAME.1.bak, ...
+    (whatever each is: :func:`keep_version` counts only regular files as backups)."""
     pattern = re.compile(re.escape(path.name) + r"(?:\.(\d+))?\.bak$")
     try:
         names = os.listdir(path.parent)
@@ -182,7 +306,7 @@ def keep_version(path: Path, current: bytes) -> Path | None:
     """
     kept = backups_of(path)
     for backup in kept:
-        if backup.stat().st_size == len(current) and backup.read_bytes() == current:
+        if _holds(backup, current):
             return None
     number = _backup_number(kept[-1], path) + 1 if kept else 0
     st = os.stat(path)
@@ -196,6 +320,19 @@ def keep_version(path: Path, current: bytes) -> Path | None:
             number += 1
     finally:
         discard(tmp)
+
+
+def _holds(backup: Path, current: bytes) -> bool:
+    """Whether ``backup`` is a regular file of its own (not a symbolic link: one to the
+    program itself would seem to hold its bytes until the program is replaced) that
+    holds ``current``."""
+    try:
+        st = os.lstat(backup)
+        if not stat.S_ISREG(st.st_mode) or st.st_size != len(current):
+            return False
+        return backup.read_bytes() == current
+    except OSError:
+        return False
 
 
 def _backup_number(backup: Path, path: Path) -> int:

@@ -11,11 +11,15 @@ millimetres inside ncopt whatever the program's own units are.
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import NamedTuple
 
 import numpy as np
+
+from .errors import ValueRangeError
 
 
 #: ``Program.word_letter`` codes of the Sinumerik tool vector words ``A3=``, ``B3=``,
@@ -237,6 +241,101 @@ class Toolpath:
         return int(self.xyz_mm.shape[0])
 
 
+# ------------------------------------------------------------------ allowed values ----
+@dataclass(frozen=True)
+class Bounds:
+    """The values a number may take: between ``low`` and ``high`` (either end open or
+    closed, None: none), finite unless ``finite`` is False (then inf is allowed, as
+    "no limit"; NaN never is), an integer where ``integer``; ``unit`` for messages.
+
+    One table of these (:data:`LIMITS`) is what the model's objects, the profiles and the
+    command line check, so all three refuse the same values with the same words."""
+
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    high_open: bool = False
+    finite: bool = True
+    integer: bool = False
+    unit: str = ""
+
+    def describe(self) -> str:
+        """The allowed values in words: ``a finite number above 0 rad/s^2``."""
+        what = "an integer" if self.integer else "a finite number" if self.finite else "a number"
+        unit = f" {self.unit}" if self.unit else ""
+        lo = None if self.low is None else (
+            f"above {self.low:g}" if self.low_open else f"of at least {self.low:g}")
+        hi = None if self.high is None else (
+            f"below {self.high:g}" if self.high_open else f"of at most {self.high:g}")
+        range_ = " and ".join(x for x in (lo, hi) if x) or ""
+        tail = "" if self.finite else " (inf: no limit)"
+        return f"{what} {range_}{unit}{tail}".replace("  ", " ").strip()
+
+    def holds(self, value) -> bool:
+        """Whether ``value`` is one of the allowed values (a bool is no number)."""
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
+            return False
+        if self.integer and not isinstance(value, numbers.Integral):
+            return False
+        v = float(value)
+        if math.isnan(v) or (self.finite and math.isinf(v)):
+            return False
+        if self.low is not None and (v <= self.low if self.low_open else v < self.low):
+            return False
+        return self.high is None or (v < self.high if self.high_open else v <= self.high)
+
+    def check(self, value, name: str) -> None:
+        """Raise :class:`~ncopt.errors.ValueRangeError` naming ``name`` and the range
+        unless ``value`` is allowed."""
+        if not self.holds(value):
+            raise ValueRangeError(f"{name} must be {self.describe()}, not {value!r}")
+
+
+#: What each value of the model may be (the command line's options and the profiles'
+#: keys of the same meaning are checked against the same bounds).
+LIMITS = {
+    "diameter_mm": Bounds(0, low_open=True, unit="mm"),
+    "corner_radius_mm": Bounds(0, low_open=True, unit="mm"),
+    "teeth": Bounds(1, integer=True),
+    "accel_rad_s2": Bounds(0, low_open=True, unit="rad/s^2"),
+    "max_rpm": Bounds(1, unit="RPM"),
+    "min_rpm": Bounds(0, unit="RPM"),
+    "max_feed_mm_min": Bounds(0, low_open=True, finite=False, unit="mm/min"),
+    "rapid_mm_min": Bounds(0, low_open=True, unit="mm/min"),
+    "vc_m_min": Bounds(0, low_open=True, unit="m/min"),
+    "fz_mm": Bounds(0, low_open=True, unit="mm"),
+    "min_rpm_step": Bounds(0, low_open=True, unit="RPM"),
+    "fz_tolerance": Bounds(0, 1, low_open=True, high_open=True),  # --fz-band: below 50 %
+    "sample_mm": Bounds(0, low_open=True, unit="mm"),
+    "f_quantum_mm_min": Bounds(0, finite=False, unit="mm/min"),
+    "min_s_interval_ms": Bounds(0, unit="ms"),
+}
+TOOL_POINTS = ("tip", "center")
+PLANNERS = ("lookahead", "forward")
+FZ_POLICIES = ("centred", "below")
+S_CHANGES = ("anywhere", "between-passes")  # as ncopt.controls.S_CHANGES
+
+
+def check_fields(obj, names, what: str) -> None:
+    """Check the fields ``names`` of a model object against :data:`LIMITS`."""
+    for name in names:
+        LIMITS[name].check(getattr(obj, name), f"{what}: {name}")
+
+
+def check_choice(value, choices: tuple, name: str) -> None:
+    """Raise ValueRangeError unless ``value`` is one of ``choices``."""
+    if value not in choices:
+        raise ValueRangeError(f"{name} must be one of {', '.join(choices)}, not {value!r}")
+
+
+def min_below_max(min_rpm: float, max_rpm: float) -> str:
+    """Why a lowest spindle speed does not fit under the highest ("" when it does)."""
+    if min_rpm < max_rpm:
+        return ""
+    return (f"the lowest spindle speed ({min_rpm:g} RPM) must be below the highest "
+            f"({max_rpm:g} RPM)")
+
+
 @dataclass(frozen=True)
 class Cutter:
     """A ball-end (corner_radius_mm == radius_mm) or bull-nose cutter.
@@ -257,8 +356,16 @@ class Cutter:
     tool_point: str = "tip"
 
     def __post_init__(self) -> None:
+        """Checks the values (:data:`LIMITS`); raises ValueRangeError naming the field."""
+        check_fields(self, ("diameter_mm", "teeth"), "cutter")
         if self.corner_radius_mm is None:
             object.__setattr__(self, "corner_radius_mm", self.diameter_mm / 2.0)
+        check_fields(self, ("corner_radius_mm",), "cutter")
+        if self.corner_radius_mm > self.diameter_mm / 2.0 * (1.0 + 1e-9):
+            raise ValueRangeError(f"cutter: corner_radius_mm must be at most half the "
+                                  f"diameter ({self.diameter_mm / 2.0:g} mm), not "
+                                  f"{self.corner_radius_mm!r}")
+        check_choice(self.tool_point, TOOL_POINTS, "cutter: tool_point")
 
     @property
     def radius_mm(self) -> float:
@@ -296,7 +403,10 @@ class Machine:
     """Spindle and axis limits of the machine.
 
     accel_rad_s2 is the spindle acceleration as users state it (rad/s^2);
-    ``accel_rpm_s`` converts it (a = alpha * 60 / (2 pi)).
+    ``accel_rpm_s`` converts it (a = alpha * 60 / (2 pi)).  Each value is checked
+    against :data:`LIMITS` (ValueRangeError), and min_rpm must be below max_rpm.  NaN
+    for both accel_rad_s2 and max_rpm says no spindle is known (``ncopt inspect``,
+    which plans nothing); planning needs them.
     """
 
     accel_rad_s2: float
@@ -305,6 +415,20 @@ class Machine:
     max_feed_mm_min: float = float("inf")
     rapid_mm_min: float = 10000.0
 
+    def __post_init__(self) -> None:
+        if not self.spindle_unknown:
+            check_fields(self, ("accel_rad_s2", "max_rpm"), "machine")
+        check_fields(self, ("min_rpm", "max_feed_mm_min", "rapid_mm_min"), "machine")
+        why = "" if self.spindle_unknown else min_below_max(self.min_rpm, self.max_rpm)
+        if why:
+            raise ValueRangeError(f"machine: {why}")
+
+    @property
+    def spindle_unknown(self) -> bool:
+        """No spindle given: accel_rad_s2 and max_rpm both NaN."""
+        return all(isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isnan(v)
+                   for v in (self.accel_rad_s2, self.max_rpm))
+
     @property
     def accel_rpm_s(self) -> float:
         return self.accel_rad_s2 * 60.0 / (2.0 * np.pi)
@@ -312,10 +436,14 @@ class Machine:
 
 @dataclass(frozen=True)
 class CuttingData:
-    """Targets: cutting speed vc (m/min) and feed per tooth fz (mm)."""
+    """Targets: cutting speed vc (m/min) and feed per tooth fz (mm), both finite and
+    above 0 (ValueRangeError otherwise)."""
 
     vc_m_min: float
     fz_mm: float
+
+    def __post_init__(self) -> None:
+        check_fields(self, ("vc_m_min", "fz_mm"), "cutting data")
 
 
 @dataclass(frozen=True)
@@ -349,6 +477,15 @@ class PlanOptions:
     fz_policy: str = "centred"
     min_s_interval_ms: float = 0.0
     s_changes: str | None = None
+
+    def __post_init__(self) -> None:
+        """Checks the values (:data:`LIMITS`, the named choices): ValueRangeError."""
+        check_choice(self.planner, PLANNERS, "plan options: planner")
+        check_fields(self, ("min_rpm_step", "fz_tolerance", "sample_mm", "f_quantum_mm_min",
+                            "min_s_interval_ms"), "plan options")
+        check_choice(self.fz_policy, FZ_POLICIES, "plan options: fz_policy")
+        if self.s_changes is not None:
+            check_choice(self.s_changes, S_CHANGES, "plan options: s_changes")
 
 
 @dataclass(frozen=True)

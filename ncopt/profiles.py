@@ -6,7 +6,10 @@ project's ``ncopt.toml`` (the nearest one from the working folder up, as black
 finds its pyproject.toml: the search stops at a folder holding ``.git`` or at the
 root), then a file given with ``--tools``.  Command-line options win over every
 profile; ``NCOPT_MACHINE`` names the default machine over ``default_machine``.
-A key ncopt does not know (a misspelling) is refused with the file and its line.
+A key ncopt does not know (a misspelling) is refused with the file and its line, and so
+is a value outside the range its key allows (``accel_rad_s2 = nan``, ``teeth = 2.5``,
+``max_rpm = inf``, a ``min_rpm`` not below ``max_rpm``): the ranges of
+:data:`ncopt.model.LIMITS`, which the command line's options share.
 
 A file may hold::
 
@@ -35,7 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .errors import FileError, UsageError
-from .model import Cutter, CuttingData
+from .model import LIMITS, Cutter, CuttingData, min_below_max
 
 EXAMPLES = Path(__file__).resolve().parent / "data" / "examples.toml"
 PROJECT_FILE = "ncopt.toml"
@@ -190,23 +193,18 @@ def load(cwd: Path | None = None, tools_file: Path | None = None) -> Profiles:
     machines, tools, cutting, default = {}, {}, {}, None
     files = search_paths(cwd, tools_file)
     for path in files:
-        try:
-            text = path.read_text(encoding="utf-8")
-            data = tomllib.loads(text)
-        except OSError as exc:
-            raise FileError(f"cannot read the profile: {exc.strerror}; {_UNREADABLE}",
-                            str(path)) from None
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-            raise UsageError(f"cannot read the profile: {exc}; fix the TOML", str(path)) from None
+        text, data = _read(path)
         src = str(path)
         check_keys(data, src, text)
         try:
             for name, m in data.get("machines", {}).items():
-                machines[name] = _machine(name, m, src)
+                machines[name] = _machine(name, m, src, text)
             for key, t in data.get("tools", {}).items():
-                tools[int(key) if str(key).isdigit() else key] = (_tool(key, t, src), src)
+                tools[int(key) if str(key).isdigit() else key] = (_tool(key, t, src, text), src)
             for name, c in data.get("cutting", {}).items():
-                cutting[name] = (_cutting(name, c, src), src)
+                cutting[name] = (_cutting(name, c, src, text), src)
+        except UsageError:
+            raise
         except (ValueError, TypeError, AttributeError) as exc:
             raise UsageError(f"a value of the wrong kind ({exc}); numbers must be numbers "
                              "and sections tables", src) from None
@@ -218,6 +216,22 @@ def load(cwd: Path | None = None, tools_file: Path | None = None) -> Profiles:
     if env:
         default = (env, MACHINE_ENV)
     return Profiles(machines, tools, cutting, default, tuple(str(p) for p in files))
+
+
+def _read(path: Path) -> tuple[str, dict]:
+    """A profile file's text and its TOML; UsageError or FileError naming the file."""
+    try:
+        text = path.read_text(encoding="utf-8")
+        return text, tomllib.loads(text)
+    except OSError as exc:
+        raise FileError(f"cannot read the profile: {exc.strerror}; {_UNREADABLE}",
+                        str(path)) from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise UsageError(f"cannot read the profile: {exc}; fix the TOML", str(path)) from None
+    except RecursionError:  # arrays or inline tables nested hundreds deep
+        raise UsageError("cannot read the profile: its arrays or tables are nested too deep "
+                         "to read (hundreds of levels); a profile needs two: fix the TOML",
+                         str(path)) from None
 
 
 def check_keys(data: dict, src: str, text: str = "") -> None:
@@ -265,24 +279,34 @@ def _need(entry: dict, key: str, what: str, src: str):
     return entry[key]
 
 
-def _number(entry: dict, key: str, what: str, src: str, default=None) -> float:
-    """A number from a profile entry, or a message naming the key."""
+def _number(entry: dict, key: str, what: str, src: str, default=None, text: str = "",
+            table: str = ""):
+    """A number from a profile entry within the bounds ncopt allows for ``key``
+    (:data:`ncopt.model.LIMITS`), or a message naming the key, the file and its line."""
     value = _need(entry, key, what, src) if default is None else entry.get(key, default)
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise UsageError(f"{what}: {key} must be a number, not {value!r}", src)
-    return float(value)
+    bounds = LIMITS.get(key)
+    if bounds is not None and not bounds.holds(value):
+        raise UsageError(f"{what}: {key} must be {bounds.describe()}, not {value!r}", src,
+                         _key_line(text, table, key))
+    return value if bounds is not None and bounds.integer else float(value)
 
 
-def _machine(name: str, m: dict, src: str) -> MachineProfile:
+def _machine(name: str, m: dict, src: str, text: str = "") -> MachineProfile:
     what = f"machine {name!r}"
     if not isinstance(m, dict):
         raise UsageError(f"{what} must be a table [machines.{name}]", src)
-    return MachineProfile(name, src, _number(m, "accel_rad_s2", what, src),
-                          _number(m, "max_rpm", what, src), _number(m, "min_rpm", what, src, 0.0),
-                          _number(m, "max_feed_mm_min", what, src, float("inf")),
-                          _number(m, "rapid_mm_min", what, src, 10000.0),
+    num = lambda key, default=None: _number(m, key, what, src, default, text, name)  # noqa: E731
+    accel, max_rpm, min_rpm = num("accel_rad_s2"), num("max_rpm"), num("min_rpm", 0.0)
+    why = min_below_max(min_rpm, max_rpm)
+    if why:
+        raise UsageError(f"{what}: min_rpm: {why}", src, _key_line(text, name, "min_rpm")
+                         or _key_line(text, name, "max_rpm"))
+    return MachineProfile(name, src, accel, max_rpm, min_rpm,
+                          num("max_feed_mm_min", float("inf")), num("rapid_mm_min", 10000.0),
                           _one_of(m, "control", what, src),
-                          _number(m, "min_s_interval_ms", what, src, 0.0),
+                          num("min_s_interval_ms", 0.0),
                           _one_of(m, "decimal_point", what, src),
                           _one_of(m, "s_changes", what, src),
                           _kinematics(m, what, src))
@@ -319,23 +343,30 @@ def _kinematics(m: dict, what: str, src: str) -> str | None:
     return name
 
 
-def _tool(key, t: dict, src: str) -> Cutter:
+def _tool(key, t: dict, src: str, text: str = "") -> Cutter:
     what = f"tool {key!r}"
     if not isinstance(t, dict):
         raise UsageError(f"{what} must be a table [tools.{key}]", src)
-    d = _number(t, "diameter_mm", what, src)
+    d = _number(t, "diameter_mm", what, src, text=text, table=str(key))
     kind = t.get("type", "ball")
     if kind not in ("ball", "bull-nose"):
-        raise UsageError(f"{what}: type must be ball or bull-nose, not {kind!r}", src)
-    r = d / 2 if kind == "ball" else _number(t, "corner_radius_mm", what, src)
-    return Cutter(d, int(_number(t, "teeth", what, src, 2)), r)
+        raise UsageError(f"{what}: type must be ball or bull-nose, not {kind!r}", src,
+                         _key_line(text, str(key), "type"))
+    r = d / 2 if kind == "ball" else _number(t, "corner_radius_mm", what, src, text=text,
+                                             table=str(key))
+    if r > d / 2 * (1 + 1e-9):
+        raise UsageError(f"{what}: corner_radius_mm must be at most half of diameter_mm "
+                         f"({d / 2:g} mm), not {r!r}", src,
+                         _key_line(text, str(key), "corner_radius_mm"))
+    return Cutter(d, _number(t, "teeth", what, src, 2, text, str(key)), r)
 
 
-def _cutting(name: str, c: dict, src: str) -> CuttingData:
+def _cutting(name: str, c: dict, src: str, text: str = "") -> CuttingData:
     what = f"cutting data {name!r}"
     if not isinstance(c, dict):
         raise UsageError(f"{what} must be a table [cutting.{name}]", src)
-    return CuttingData(_number(c, "vc_m_min", what, src), _number(c, "fz_mm", what, src))
+    return CuttingData(_number(c, "vc_m_min", what, src, text=text, table=name),
+                       _number(c, "fz_mm", what, src, text=text, table=name))
 
 
 def render_profiles(found: Profiles, console) -> None:

@@ -143,10 +143,21 @@ def say(text: str, error: bool = False) -> None:
         pass
 
 
+def require_stdout(instead: str = "") -> None:
+    """Raise FileError (exit 7) when stdout is closed (``>&-``): Python then drops what
+    print() writes without a word, and the command would end with exit 0 and no output.
+    ``instead``: what the user can do (``use -q``)."""
+    if sys.stdout is None:
+        raise FileError("standard output is closed; nothing could be shown"
+                        + (f"; {instead}" if instead else ""), "<stdout>")
+
+
 @contextmanager
 def listing() -> Iterator[None]:
     """Run a listing's output: a reader that closes the pipe early ends it quietly (the
-    caller then exits 0).  Any other write fault (a full disk) is reported as usual."""
+    caller then exits 0).  Any other write fault (a full disk) is reported as usual, and
+    so is a closed stdout (:func:`require_stdout`)."""
+    require_stdout()
     try:
         yield
         if sys.stdout is not None:
