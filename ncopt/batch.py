@@ -41,6 +41,7 @@ class Task:
     mesh: str | None = None
     in_place: bool = False
     page: str | None = None  # batch --report index.html: this file's HTML page
+    lite: bool = False  # --report-lite: that page with static images, no plotly.js
 
 
 @dataclass(frozen=True)
@@ -165,7 +166,7 @@ def process_one(task: Task) -> FileReport:
         if task.page:
             from .report import write_file_page
             written, why = write_file_page(task.page, result, data, src, target, task.job,
-                                           task.mesh)
+                                           task.mesh, lite=task.lite)
             done = replace(done, report=written, report_error=why)
         return done
     except NothingToPlan as exc:

@@ -163,6 +163,9 @@ Stock = Annotated[str, typer.Option(
 Shape = Annotated[Optional[str], typer.Option(
     "--shape", help="ball or bull-nose: the cutter's shape, where the program's tool "
     "comment says otherwise (default: --diameter alone never overrides a flat end mill).")]
+ReportLite = Annotated[bool, typer.Option(
+    "--report-lite", "--lite", help="Static images instead of the interactive plots: no "
+    "plotly.js, a page well under 1 MB to mail.")]
 ReportFile = Annotated[Optional[Path], typer.Option(
     "--report", help="Also write an HTML report: times, S/F/fz/D_eff curves, a 3D toolpath "
     "and the changed blocks, in one file that opens offline.")]
@@ -450,7 +453,7 @@ def rewrite(
     material: Material = None, method: MethodName = "contact", ap: Ap = "0.2",
     allowance_along: AllowanceAlong = "normal", operations: Operations = None,
     shape: Shape = None, stock: Stock = "0", report: ReportFile = None, quiet: Quiet = False,
-    kinematics: KinematicsName = None,
+    kinematics: KinematicsName = None, report_lite: ReportLite = False,
     as_json: Annotated[bool, typer.Option(
         "--json", help="The summary as one JSON object on stderr instead of text (stdout "
         "stays the program).")] = False,
@@ -495,7 +498,8 @@ def rewrite(
     if report is not None:
         from .report import from_rewrite
         _write_report(report, lambda index: from_rewrite(
-            result, data.decode("latin-1"), input, output or "-", job, index), mesh, quiet)
+            result, data.decode("latin-1"), input, output or "-", job, index), mesh, quiet,
+            report_lite)
     if as_json:
         import json
         say(json.dumps(result.summary.to_dict(), indent=2))
@@ -674,7 +678,7 @@ def batch(
     material: Material = None, method: MethodName = "contact", ap: Ap = "0.2",
     allowance_along: AllowanceAlong = "normal", operations: Operations = None,
     shape: Shape = None, stock: Stock = "0", quiet: Quiet = False,
-    kinematics: KinematicsName = None, color: Color = "auto",
+    kinematics: KinematicsName = None, color: Color = "auto", report_lite: ReportLite = False,
 ) -> None:
     """Rewrite every program of a folder in parallel; one bad file never stops the others."""
     from .batch import Task, find_programs, plan_targets, prepare_output_folder, run_batch
@@ -696,7 +700,7 @@ def batch(
     if output is not None:
         prepare_output_folder(output)
     tasks = [Task(str(f), str(t), job, None if mesh is None else str(mesh), in_place,
-                  None if page is None else str(page))
+                  None if page is None else str(page), report_lite)
              for f, t, page in zip(files, targets, pages)]
     view = BatchView(stderr_console(), files, quiet=quiet)
     try:
@@ -733,9 +737,7 @@ def report(
     machine: MachineName = None, tools_file: ToolsFile = None, cutter: CutterName = None,
     material: Material = None, control: Control = None, decimal_point: DecimalPoint = None,
     quiet: Quiet = False, kinematics: KinematicsName = None, color: Color = "auto",
-    lite: Annotated[bool, typer.Option(
-        "--report-lite", "--lite", help="Static images instead of the interactive plots: no "
-        "plotly.js, a page well under 1 MB to mail.")] = False,
+    lite: ReportLite = False,
 ) -> None:
     """Write one HTML page about a program (and its original): times, curves, 3D toolpath;
     a section per tool ncopt would plan (--tool N: that one), the others listed as left."""

@@ -316,3 +316,25 @@ def test_batch_pages_share_one_plotly_file(tmp_path):
         dom = chromium_dom(pages[1], tmp_path)
         assert len(re.findall(r"data-drawn=\"1\"", dom)) == 2
         assert re.search(r"<pre id=\"ncopt-errors\"[^>]*></pre>", dom)
+
+
+def test_rewrite_and_batch_take_report_lite(tmp_path):
+    """--report-lite on rewrite and batch too: pages of static images, no plotly.js."""
+    src = tmp_path / "in"
+    src.mkdir()
+    (src / "bowl.mpf").write_bytes(BOWL_MPF.read_bytes())
+    page = tmp_path / "bowl.html"
+    result = invoke(["rewrite", src / "bowl.mpf", "--diameter", "16", *SPINDLE,
+                     "-o", tmp_path / "bowl_opt.mpf", "--report", page, "--report-lite", "-q"])
+    assert result.exit_code == Exit.OK, result.stderr
+    html = page.read_text()
+    assert "<img" in html and "Plotly" not in html and page.stat().st_size < 1_000_000
+    index = tmp_path / "report" / "index.html"
+    index.parent.mkdir()
+    result = invoke(["batch", src, "-o", tmp_path / "out", "--diameter", "16", *SPINDLE,
+                     "--report", index, "--report-lite", "-q"])
+    assert result.exit_code == Exit.OK, result.stderr
+    pages = [p for p in index.parent.rglob("*.html") if p != index]
+    assert pages and all("Plotly" not in p.read_text() for p in pages)
+    assert not list(index.parent.rglob("plotly*.js"))  # nothing to share
+    assert sum(p.stat().st_size for p in pages) < 1_000_000
