@@ -126,8 +126,17 @@ def _minutes(before: float, after: float) -> str:
 
 
 def _shorten(name: str, width: int) -> str:
-    """A file name that fits ``width`` characters: its end kept, its start elided."""
-    return name if len(name) <= width else "…" + name[len(name) - width + 1:]
+    """A path that fits ``width`` characters: its first folder and its file name kept, the
+    middle elided (``sub/…/part_07.nc``: the folder tells the files of one part from
+    another's); where even that is too long, the file name's end."""
+    if len(name) <= width:
+        return name
+    head, sep, _ = name.partition("/")
+    tail = name.rsplit("/", 1)[-1]
+    if sep and len(head) + len(tail) + 3 <= width:
+        room = width - len(tail) - 2  # "…/" before the file name
+        return name[:room] + "…/" + tail if room > len(head) else head + "/…/" + tail
+    return "…" + name[len(name) - width + 1:]
 
 
 def _count_lines(path: Path) -> int:

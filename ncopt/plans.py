@@ -615,7 +615,7 @@ def plan_program(prog: Program, tp: Toolpath, idx: planner.BlockIndex, job,
             check_fit(fits[op.tool], op.tool, job.contact_tol_mm, prog.path)
         cut, source = cuts[k]
         stamp = stamp_for(stamps, op.tool, _lines(stamps, op))
-        intent = (stamp.s0_rpm, stamp.f0_mm_min) if stamp and stamp.s0_rpm else None
+        intent = (stamp.s0_rpm, stamp.f0_mm_min) if stamp and stamp.f0_mm_min else None
         plans.append(replace(
             plan_operation(k, op, views[key], cut, source, tp, idx, point_op, scope, cmd,
                            job.machine, job.options, prog.path, intent),

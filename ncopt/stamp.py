@@ -66,8 +66,8 @@ class Stamp:
     line: int  # 0-based, its first line
     lines: tuple | None = None
     band_pct: float | None = None
-    s0_rpm: float = 0.0  # the operation's own S and cutting feed before ncopt (0: not stamped)
-    f0_mm_min: float = 0.0
+    s0_rpm: float = 0.0  # the operation's own S and cutting feed before ncopt (S0=0: the
+    f0_mm_min: float = 0.0  # program gave no S); F0 0: not stamped
 
 
 class Stamps(dict):
@@ -184,10 +184,10 @@ def _plan_lines(plans, band_pct: float | None) -> list[str]:
         t = f"T{p.tool}" if p.tool >= 0 else "T?"
         out.append(f"ncopt {t} lines={p.lines[0]}-{p.lines[1]} "
                    f"vc={vc_text(p.cutting.vc_m_min)} fz={p.cutting.fz_mm:.6f}{band}")
-        # the operation's own S and cutting feed, where the program gives them (a program
-        # without S words, planned from --vc and --fz, has none)
+        # the operation's own S and cutting feed (S0=0: the program gives no S, it was
+        # planned from --vc and --fz), where its cutting feed is known
         s0, f0 = p.s0_rpm, p.cutting_feed_mm_min
-        own = f" S0={s0:.10g} F0={f0:.10g}mm/min" if s0 > 0 and f0 > 0 and f0 < 1e12 else ""
+        own = (f" S0={max(s0, 0.0):.10g} F0={f0:.10g}mm/min" if 0 < f0 < 1e12 else "")
         out.append(f"ncopt {t} D={p.cutter.diameter_mm:g}mm r={p.cutter.corner_radius_mm:g}mm "
                    f"z={p.cutter.teeth}{own}")
     return out

@@ -485,3 +485,17 @@ def test_command_help_loads_no_heavy_module():
         done = subprocess.run([sys.executable, "-c", probe, *args], capture_output=True,
                               text=True, timeout=60, env={**os.environ, "PYTHONPATH": str(ROOT)})
         assert done.returncode == 0 and done.stderr == "[]\n", (args, done.stderr)
+
+
+def test_batch_names_keep_their_first_folder_and_file_name():
+    """'…ng/finishing/part_07.nc' lost which mould the file is of; the middle goes instead."""
+    from ncopt.batchview import _shorten
+
+    assert _shorten("mould_A/roughing/finishing/part_07.nc", 30) == "mould_A/roughing/f…/part_07.nc"
+    assert _shorten("mould_B/2025/november/week3/finish.nc", 24) == "mould_B/2025/…/finish.nc"
+    assert _shorten("sub/b.nc", 30) == "sub/b.nc"
+    long_name = "x" * 50 + ".nc"
+    assert _shorten(long_name, 30) == "…" + long_name[-29:]
+    for name in ("mould_A/roughing/finishing/part_07.nc", "a/" + "b" * 40 + ".nc"):
+        for width in range(8, 45):
+            assert len(_shorten(name, width)) <= width

@@ -118,3 +118,17 @@ def test_an_old_one_line_stamp_is_still_read(semicolon):
     strip = lambda t: [ln for ln in t.splitlines() if not STAMP_LINE.match(ln)]  # noqa: E731
     assert strip(again) == strip(new)
     assert stamp_of(again)[4:] == stamp_of(new)[4:]
+
+
+def test_a_program_without_s_words_rewrites_the_same_twice():
+    """The issue's case: the stamp read S0=0/F0=0 on a program that had no S word and a
+    second rewrite changed it (to the S ncopt had written).  Planned from the options' vc and
+    fz, the stamp says S0=0 and the program's own cutting feed, and the second rewrite is
+    byte-identical."""
+    from ncopt.model import Cutter, CuttingData
+
+    text = raster("(T1 D=6. CR=3. - ball end mill)\nG21 G90 G94\nT1 M6\nM3\n")
+    job = replace(JOB, cutter=Cutter(6.0, 2), cutting=CuttingData(80.0, 0.05))
+    once = rewrite_text(text, job, "a.nc").text
+    assert once != text and "(ncopt T1 D=6mm r=3mm z=2 S0=0 F0=800mm/min)" in once
+    assert rewrite_text(once, job, "a.nc").text == once
