@@ -691,6 +691,11 @@ def _op_row(op, k, tp, work, t_before, t_after) -> OpRow:
 
 def _plan_warnings(prog, tp, work, job) -> tuple:
     out = []
+    stamps = read_stamps(prog)
+    if len(stamps) and stamps.spindle is None:
+        out.append(f"{prog.path}:{stamps.lines[0] + 1}: the stamp of an earlier ncopt does not "
+                   "say which spindle its S and F were planned for: planned again as if for "
+                   "this one; for another machine, rewrite the original program")
     inch = tp.line_inch is not None and bool(tp.line_inch.any())
     if inch and job.cutter is not None and job.diameter_bare and job.cutter.diameter_mm < 2.0:
         d = job.cutter.diameter_mm

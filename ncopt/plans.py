@@ -419,7 +419,9 @@ def _feed_intent(blocks, feed, s_prog, mine, machine, cut, cutter, opts, intent,
         f0 = _cutting_feed(feed, blocks.length_mm, mine, not np.isscalar(match))
         s0 = _weighted_median(s_prog[mine], blocks.length_mm[mine]) if mine.any() else 0.0
         return s_prog, np.abs(feed - f0) > match, f0, s0
-    s0, f0 = intent
+    s0, f0, spindle = intent
+    if spindle is not None:  # the S and F written were planned for the stamped spindle
+        machine = replace(machine, accel_rad_s2=spindle[0], max_rpm=spindle[1])
     fixed = replace(blocks, planned=np.zeros_like(blocks.planned))
     k = planner.k_rpm2_per_mm(machine, cut, cutter.teeth)
     em = planner.emit_rpm(planner.Profile(fixed.fixed_rpm, fixed.fixed_rpm, k), fixed,
@@ -615,7 +617,8 @@ def plan_program(prog: Program, tp: Toolpath, idx: planner.BlockIndex, job,
             check_fit(fits[op.tool], op.tool, job.contact_tol_mm, prog.path)
         cut, source = cuts[k]
         stamp = stamp_for(stamps, op.tool, _lines(stamps, op))
-        intent = (stamp.s0_rpm, stamp.f0_mm_min) if stamp and stamp.f0_mm_min else None
+        intent = ((stamp.s0_rpm, stamp.f0_mm_min, getattr(stamps, "spindle", None))
+                  if stamp and stamp.f0_mm_min else None)
         plans.append(replace(
             plan_operation(k, op, views[key], cut, source, tp, idx, point_op, scope, cmd,
                            job.machine, job.options, prog.path, intent),

@@ -49,6 +49,7 @@ _INFO = re.compile(r"^\s*(?:\(|;)\s*ncopt (?:\d\S* \d{4}-\d\d-\d\d: |from |machi
                    r"cutting time )")
 _FROM = re.compile(r"^\s*(?:\(|;)\s*ncopt from ")
 _MACHINE = re.compile(r"^\s*(?:\(|;)\s*ncopt machine ")
+_SPINDLE = re.compile(r"\bncopt machine (?:.*: )?(?P<accel>[\d.]+) rad/s2, (?P<rpm>[\d.]+) RPM")
 
 
 @dataclass(frozen=True)
@@ -72,9 +73,11 @@ class Stamp:
 
 class Stamps(dict):
     """The stamps of a program by (tool, (first, last) lines or None); ``lines``: every
-    0-based line of the stamp block (its header lines too), sorted."""
+    0-based line of the stamp block (its header lines too), sorted; ``spindle``: the
+    (accel rad/s^2, max RPM) of the machine it was planned for (None: not stamped)."""
 
     lines: list = []
+    spindle: tuple | None = None
 
 
 @dataclass(frozen=True)
@@ -118,6 +121,9 @@ def read_stamps(prog: Program) -> Stamps:
             continue
         if _INFO.match(text):
             found.lines.append(line)
+            spindle = _SPINDLE.search(text)
+            if spindle:
+                found.spindle = (float(spindle["accel"]), float(spindle["rpm"]))
     return found
 
 

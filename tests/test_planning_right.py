@@ -7,6 +7,7 @@ Each case is built from the form a real program uses (quoted in its test).
 from __future__ import annotations
 
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -147,28 +148,58 @@ def test_generated_programs_rewrite_idempotently(stepover, plunge_f, cut_f, s, t
     assert twice == once
 
 
-def test_rewrite_names_every_place_simulate_finds_the_spindle_lagging():
-    """One spindle check for rewrite and simulate.  A program planned for one spindle and
-    planned again for a slower one (227 -> 131 rad/s^2, 15000 -> 8000 RPM) has places the
-    spindle cannot follow (re-planning from a stamp is not yet right): rewrite names them,
-    and simulate, with the same options, finds none that rewrite did not name."""
+def _bowl_jobs():
     from dataclasses import replace as with_
 
     from ncopt.model import Cutter
 
     bowl = (Path(__file__).resolve().parents[1] / "samples" / "bowl.mpf").read_text("latin-1")
     job = with_(JOB, cutter=Cutter(16.0, 2))
-    slow = with_(job, machine=Machine(accel_rad_s2=131.0, max_rpm=8000.0))
-    once = rewrite_text(bowl, job, "bowl.mpf").text
-    result = rewrite_text(once, slow, "b1.mpf")
-    named = set(result.summary.lag_lines)
+    return bowl, job, with_(job, machine=Machine(accel_rad_s2=131.0, max_rpm=8000.0))
+
+
+def test_rewrite_names_every_place_simulate_finds_the_spindle_lagging():
+    """One spindle check for rewrite and simulate.  The sample planned for a 227 rad/s^2
+    spindle and judged on a 131 rad/s^2 one has places that spindle cannot follow: the
+    rewrite's check (run on that plan with the slower spindle) names them, and simulate,
+    with the same slower spindle, finds none that it did not name."""
+    from types import SimpleNamespace
+
+    from ncopt.api import _lag_warnings
+
+    bowl, job, slow = _bowl_jobs()
+    slow = replace(slow, machine=Machine(accel_rad_s2=131.0, max_rpm=15000.0))
+    result = rewrite_text(bowl, job, "bowl.mpf")
+    warnings, lines = _lag_warnings(result.program, result.toolpath, result.block_index,
+                                    SimpleNamespace(plans=result.plans), result.targets, slow)
+    named = set(lines)
     assert len(named) > 100
-    [warning] = [w for w in result.summary.warnings if "cannot follow" in w]
-    assert warning.startswith(f"b1.mpf:{min(named)}: the spindle cannot follow the S words at "
-                              f"{len(named)} cutting blocks (lines {min(named)}")
-    report, _ = simulate_program(result.text, slow, path="b2.mpf", sample_mm=0.5)
+    [warning] = warnings
+    assert warning.startswith(f"bowl.mpf:{min(named)}: the spindle cannot follow the S words "
+                              f"at {len(named)} cutting blocks (lines {min(named)}")
+    report, _ = simulate_program(result.text, slow, path="out.mpf", sample_mm=0.5)
     assert len(report.lag) > 100
-    # the input already had its stamp, which the rewrite replaced in place: the same lines
-    assert len(result.text.splitlines()) == len(once.splitlines())
-    missed = [s for s in report.lag if not named & set(range(s.first_line, s.last_line + 1))]
+    # the stamp's six lines come first (the sample's own "; ncopt sample: ..." is no stamp)
+    stamp = len(result.text.splitlines()) - len(bowl.splitlines())
+    assert stamp == 6
+    missed = [s for s in report.lag
+              if not named & set(range(s.first_line - stamp, s.last_line - stamp + 1))]
     assert not missed, missed[:3]
+
+
+def test_replanning_for_another_machine_is_planning_the_original_for_it():
+    """The stamp names the spindle the S and F were planned for: planned again for a slower
+    one, the program runs the S and F that planning the original for it gives, at every
+    move (the re-planned one keeps some S words that now repeat the S in force), fz within
+    +-2 % on the whole cut; a third rewrite changes nothing."""
+    bowl, job, slow = _bowl_jobs()
+    once = rewrite_text(bowl, job, "bowl.mpf").text
+    again = rewrite_text(once, slow, "bowl.mpf")
+    direct = rewrite_text(bowl, slow, "bowl.mpf")
+    a, b = interpret(parse_text(again.text)), interpret(parse_text(direct.text))
+    assert np.array_equal(a.spindle_rpm, b.spindle_rpm)
+    assert np.array_equal(a.feed_mm_min, b.feed_mm_min, equal_nan=True)
+    assert again.summary.lag_lines == ()
+    report, _ = simulate_program(again.text, slow, path="b2.mpf", sample_mm=0.5)
+    assert report.fz_in_band_pct >= 99.0 and not report.lag
+    assert rewrite_text(again.text, slow, "bowl.mpf").text == again.text

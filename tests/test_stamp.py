@@ -132,3 +132,16 @@ def test_a_program_without_s_words_rewrites_the_same_twice():
     once = rewrite_text(text, job, "a.nc").text
     assert once != text and "(ncopt T1 D=6mm r=3mm z=2 S0=0 F0=800mm/min)" in once
     assert rewrite_text(once, job, "a.nc").text == once
+
+
+def test_an_old_stamp_names_no_spindle_and_the_rewrite_says_so():
+    text = raster()
+    new = rewrite_text(text, JOB, "a.nc").text
+    a, b = stamp_of(new)[4:6]
+    old = "(ncopt 0.1.0 " + a[len("(ncopt "):-1] + " " + b[len("(ncopt T1 "):-1] + ")"
+    old = re.sub(r" band=2 (D=\S+ r=\S+ z=\d+)", r" \1 band=2", old)
+    body = [ln for ln in new.splitlines() if not STAMP_LINE.match(ln)]
+    result = rewrite_text("\n".join([old] + body) + "\n", JOB, "a.nc")
+    assert read_stamps(parse_text(result.text)).spindle == (227.0, 15000.0)
+    assert any(w.startswith("a.nc:1: the stamp of an earlier ncopt does not say which spindle")
+               for w in result.summary.warnings)
