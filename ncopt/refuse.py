@@ -168,7 +168,8 @@ def check_words(prog: Program, macro_calls: np.ndarray | None = None) -> None:
         g = (prog.word_letter == ord("G")) & np.isin(prog.word_value, (65.0, 66.0))
         macro_calls[prog.word_line[g]] = True
     dup = _first_duplicate(prog, macro_calls)
-    found = [k for k in (dup, _first_exponent(prog, macro_calls)) if k is not None]
+    found = [k for k in (dup, _first_exponent(prog, macro_calls), _first_infinite(prog))
+             if k is not None]
     if not found:
         return
     k = min(found, key=lambda item: item[0])
@@ -177,6 +178,16 @@ def check_words(prog: Program, macro_calls: np.ndarray | None = None) -> None:
     start = int(prog.line_start[line])
     column = int(prog.word_start[word]) - start + 1
     raise refuse_at(prog.path, prog.text, start, line + 1, column, message)
+
+
+def _first_infinite(prog: Program) -> tuple[int, str] | None:
+    """A number too large for any control (a float of 310 digits reads as infinity)."""
+    bad = np.flatnonzero(np.isinf(prog.word_value))
+    if bad.size == 0:
+        return None
+    k = int(bad[0])
+    return k, (f"'{_word_text(prog, k)}' is a number beyond any control's range; check the "
+               "program at this word")
 
 
 def _first_duplicate(prog: Program, macro_calls: np.ndarray) -> tuple[int, str] | None:

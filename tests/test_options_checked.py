@@ -313,14 +313,13 @@ def test_an_expression_beyond_any_number_is_a_located_error(expression):
     assert str(exc.value).startswith("t.ngc:3:1: cannot evaluate expression: ")
 
 
-@pytest.mark.xfail(strict=True, raises=ValueError, reason=(
-    "a word of 310 digits reads as inf (parse.py's float()); it should be refused at its "
-    "line as a number beyond any control (parse.py or refuse.py, not ncopt's option checks)"))
 def test_a_word_beyond_any_number_is_a_located_error(tmp_path):
     path = tmp_path / "big.nc"
     path.write_bytes(dome(8).replace(b"G1 X-10.000 Y-10.000", b"G1 X1" + b"0" * 309 + b" Y-10.000", 1))
     result = invoke(["rewrite", path, *CUTTER, *SPINDLE, "-o", tmp_path / "o.nc"])
     assert result.exit_code == Exit.PROGRAM
+    assert f"{path}:6:4: 'X1000" in result.stderr
+    assert "beyond any control's range" in result.stderr
 
 
 @pytest.mark.xfail(strict=True, reason=(
