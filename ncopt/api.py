@@ -565,7 +565,7 @@ def _summary(prog, tp, idx, work: Work, targets: Targets, counts, mesh_edge, job
         vc_m_min=first.cutting.vc_m_min, fz_mm=first.cutting.fz_mm,
         max_s_rpm=max(float(np.max(p.s_cmd_rpm[p.blocks.planned], initial=0.0)) for p in plans),
         tools=tuple(tools), skipped_tools=skipped, mesh_edge_mm=mesh_edge,
-        warnings=tp.warnings + _plan_warnings(prog, tp, work, job),
+        warnings=tp.warnings + _plan_warnings(prog, tp, idx, work, job),
         close_s_words=sum(p.close_s_words for p in plans), operations=rows,
         planned_time_before_min=float(t_before[planned_pts].sum()),
         planned_time_after_min=float(t_after[planned_pts].sum()),
@@ -689,7 +689,7 @@ def _op_row(op, k, tp, work, t_before, t_after) -> OpRow:
                  s_lo, s_hi)
 
 
-def _plan_warnings(prog, tp, work, job) -> tuple:
+def _plan_warnings(prog, tp, idx, work, job) -> tuple:
     out = []
     stamps = read_stamps(prog)
     if len(stamps) and stamps.spindle is None:
@@ -711,6 +711,7 @@ def _plan_warnings(prog, tp, work, job) -> tuple:
                        f"at {job.machine.max_rpm:.0f} RPM vc reaches {reached:.1f} of its "
                        f"{p.cutting.vc_m_min:.1f} m/min where the cutter cuts at its full diameter")
     for p in work.plans:
+        out.extend(_below_min_rpm(prog, idx, work, p, job.machine))
         if p.over_target[0]:
             op = work.ops[p.op]
             out.append(f"{prog.path}: {op.name} (T{p.tool}): vc up to {p.over_target[1]:.1f} % "
@@ -730,6 +731,23 @@ def _plan_warnings(prog, tp, work, job) -> tuple:
                        f"feed {p.cutting_feed_mm_min:g} mm/min or in the air (plunges, ramps, "
                        "lead-ins, links) keep the program's feed per tooth: F scaled with S")
     return tuple(out)
+
+
+def _below_min_rpm(prog, idx: planner.BlockIndex, work: Work, p, machine: Machine) -> list:
+    """Cutting blocks that need a lower S than the machine's lowest (--min-rpm): vc runs
+    above its target there, and the rewrite says where and by how much."""
+    c = p.blocks.cutting & p.blocks.planned
+    need = p.blocks.req_rpm
+    low = np.flatnonzero(c & (need < machine.min_rpm))
+    if low.size == 0 or not machine.min_rpm > 0:
+        return []
+    worst = 100.0 * (machine.min_rpm / float(np.min(need[low])) - 1.0)
+    lines = np.unique(idx.line[p.window[0] + low])
+    return [f"{prog.path}:{int(lines[0]) + 1}: {work.ops[p.op].name} (T{p.tool}): "
+            f"{low.size} cutting block{'s' if low.size > 1 else ''} (lines "
+            f"{_line_ranges(lines)}) need less than the machine's lowest speed "
+            f"{machine.min_rpm:g} RPM: vc up to {worst:+.1f} % above its target there (lower "
+            "--min-rpm if the spindle can turn slower)"]
 
 
 def _unknown_warning(prog, tp: Toolpath, work: Work, p) -> list:

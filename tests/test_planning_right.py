@@ -203,3 +203,17 @@ def test_replanning_for_another_machine_is_planning_the_original_for_it():
     report, _ = simulate_program(again.text, slow, path="b2.mpf", sample_mm=0.5)
     assert report.fz_in_band_pct >= 99.0 and not report.lag
     assert rewrite_text(again.text, slow, "bowl.mpf").text == again.text
+
+
+def test_a_lowest_machine_speed_above_what_the_cut_needs_is_named():
+    """--min-rpm above the lowest S the plan needs: vc runs above its target there (the
+    issue: +35 % with no warning); the rewrite says where and by how much, and simulate
+    with the exact mesh agrees on the excess."""
+    bowl, job, _ = _bowl_jobs()
+    job = replace(job, machine=Machine(accel_rad_s2=227.0, max_rpm=15000.0, min_rpm=2000.0))
+    result = rewrite_text(bowl, job, "bowl.mpf")
+    [warning] = [w for w in result.summary.warnings if "lowest speed 2000 RPM" in w]
+    worst = float(re.search(r"vc up to \+([\d.]+) %", warning)[1])
+    # the full diameter at vc 70 m/min needs 1393 RPM: 2000 RPM is 43.6 % above it at most
+    assert 0.0 < worst <= 100.0 * (2000.0 / (70.0198 * 1000 / (np.pi * 16)) - 1) + 0.1
+    assert re.match(r"bowl\.mpf:\d+: T4 \(T4\): \d+ cutting blocks \(lines \d+", warning)
