@@ -37,12 +37,14 @@ def invoke(args, stdin: bytes | None = None):
 
 
 def without_one_comment_line(base: str, longer: str) -> str:
-    """``longer`` minus the single comment line it holds in addition to ``base``."""
+    """``longer`` minus the block of comment lines (the stamp: four of header, two per
+    planned operation) it holds in addition to ``base``."""
     a, b = base.splitlines(keepends=True), longer.splitlines(keepends=True)
-    assert len(b) == len(a) + 1
+    n = len(b) - len(a)
+    assert n >= 6 and n % 2 == 0, n
     i = next((k for k, (x, y) in enumerate(zip(a, b)) if x != y), len(a))
-    assert b[i].lstrip().startswith(("(", ";"))
-    return "".join(b[:i] + b[i + 1:])
+    assert all(line.lstrip().startswith(("(ncopt ", "; ncopt ")) for line in b[i:i + n])
+    return "".join(b[:i] + b[i + n:])
 
 
 # ------------------------------------------------------------- the sample bowl ----
