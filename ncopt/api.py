@@ -596,9 +596,14 @@ def _unknown_share(tp: Toolpath, work: Work, points: np.ndarray) -> tuple:
         if sampled.unknown is None:
             continue
         mine = points & (tp.tool == view.tool)
-        known = np.flatnonzero(sampled.contacts.cutting & ~sampled.unknown & mine)
+        # per toolpath point (the move ending there): a mesh's samples come several a move
+        new_pt = np.zeros(tp.n, dtype=bool)
+        np.logical_or.at(new_pt, sampled.point, sampled.unknown)
+        cut_pt = np.zeros(tp.n, dtype=bool)
+        np.logical_or.at(cut_pt, sampled.point, sampled.contacts.cutting)
+        known = np.flatnonzero(cut_pt & ~new_pt & mine)
         cut_mm[known] = tp.seg_len_mm[known]
-        new = np.flatnonzero(sampled.unknown & mine)
+        new = np.flatnonzero(new_pt & mine)
         cut_mm[new] = below_top_mm(tp, new, sampled.top_mm, sampled.up)
         unknown[new] = True
     total = float(cut_mm.sum())
@@ -757,11 +762,16 @@ def _unknown_warning(prog, tp: Toolpath, work: Work, p) -> list:
         return []
     lines = np.unique(tp.line[unknown])
     op = work.ops[p.op]
-    return [f"{prog.path}:{int(lines[0]) + 1}: {op.name} (T{p.tool}): {pct:.1f} % of the cut "
-            f"({lines.size} blocks: lines {_line_ranges(lines)}) runs where the toolpath "
-            "cannot show the contact (down or up a wall, a plunge below the top of the cut, "
-            "a pass with no neighbour): planned as if the cutter cut at its full diameter, "
-            "so vc stays at or below its target there; give --mesh to plan it exactly"]
+    where = f"{prog.path}:{int(lines[0]) + 1}: {op.name} (T{p.tool}): {pct:.1f} % of the cut " \
+        f"({lines.size} blocks: lines {_line_ranges(lines)})"
+    if (work.fits or {}).get(p.tool) is not None:  # a mesh, which has no part there
+        return [f"{where} runs below the top of the cut where the mesh has no part: planned "
+                "as if the cutter cut at its full diameter, so vc stays at or below its target "
+                "there; check that the mesh is the whole part (a floor, a side missing)"]
+    return [f"{where} runs where the toolpath cannot show the contact (down or up a wall, a "
+            "plunge below the top of the cut, a pass with no neighbour): planned as if the "
+            "cutter cut at its full diameter, so vc stays at or below its target there; give "
+            "--mesh to plan it exactly"]
 
 
 def nominal_cutting_data(tp: Toolpath, selected: np.ndarray, cutter: Cutter,

@@ -47,6 +47,9 @@ RUN_END_TILT_DEG = 0.5
 # above the highest point the tool cuts, less this (a plunge that ends where the cut
 # begins, at its top, touches the part only there).
 AIR_CLEARANCE_MM = 0.01
+# With a mesh, a cut along the surface this many cutter radii from every face, below the top
+# of the cut, is not taken for air (the mesh may lack that part): _air_below_the_top
+AIR_FAR = 0.25
 
 # Evenly spaced samples stop at this many per move: a longer move is sampled every
 # length / MAX_SAMPLES_PER_MOVE (10 m at 0.1 mm; memory stays bounded by the moves).
@@ -326,6 +329,7 @@ def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index:
         p = got.probe
         sampled = Sampled(Contacts(cc_mm=p.cc_mm, normal=p.normal, r_eff_mm=p.r_eff_mm,
                                    cutting=p.cutting), got.point, gap_mm=p.gap_mm)
+        sampled = _air_below_the_top(tp, cutter, selected, sampled, got.frac)
     else:
         air = air_moves(tp)
         cutting = selected & ~air
@@ -344,6 +348,34 @@ def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index:
         sampled = replace(sampled, contacts=_with_material(tp, cutter, sampled, method))
     release_freed_memory(force=mesh_index is not None)
     return sampled
+
+
+def _air_below_the_top(tp: Toolpath, cutter: Cutter, selected: np.ndarray, sampled: Sampled,
+                       frac: np.ndarray) -> Sampled:
+    """With a mesh (3 axes): the samples of cuts along the surface (not plunges or
+    retracts) that the mesh puts far in the air (more than AIR_FAR cutter radii from
+    every face) though they run below the top of the cut it touches.  A mesh that lacks part of the part (half of it, a floor) would have them
+    planned as air, the spindle free (a half bowl: vc +787 %); they are planned where the
+    cutter cuts at its full radius, as a contact the toolpath cannot show without a mesh.
+    With the whole part, only a few samples of links and lead-ins are so."""
+    c, point = sampled.contacts, sampled.point
+    surface = (selected & ~air_moves(tp))[point]
+    z = tp.xyz_mm[:, 2]
+    before = np.maximum(point - 1, 0)
+    height = z[before] + frac * (z[point] - z[before])
+    touching = c.cutting & surface
+    if not touching.any():
+        return sampled
+    top = float(height[touching].max())
+    # farther from every face than a quarter of the cutter's radius: a block's chord over a
+    # hollow of the part stays nearer (6 mm blocks over the wave of tests/unit/test_sampling:
+    # 0.45 mm) and stays air; a part the mesh lacks is farther
+    far = sampled.gap_mm > AIR_FAR * cutter.radius_mm
+    unknown = surface & ~c.cutting & far & (height < top - AIR_CLEARANCE_MM)
+    if not unknown.any():
+        return sampled
+    return replace(sampled, contacts=_at_largest_radius(c, unknown, cutter, None),
+                   unknown=unknown, top_mm=top, up=np.array([0.0, 0.0, 1.0]))
 
 
 def _path_contacts_5axis(tp: Toolpath, cutter: Cutter, cutting: np.ndarray):
