@@ -67,6 +67,7 @@ class Job:
     diameter_bare: bool = False  # --diameter was a bare number (read as mm)
     shape_named: bool = False  # the user named the cutter's shape (not --diameter alone)
     kinematics: str | None = None  # 5-axis: how rotary angles tilt the tool (ncopt.kinematics)
+    tcp: str | None = None  # "always": the control runs TCP for every program (else as switched)
     machine_name: str | None = None  # the machine profile the spindle comes from (the stamp)
 
 
@@ -252,7 +253,9 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
             found = detect(text)
             prog = read_text(text, path, job, found.name)
             show("following the toolpath")
-            tp = interpret(prog, kinematics=job.kinematics)
+            # grbl has no tool-centre-point control, whatever a profile says
+            tcp = None if (job.control or found.name) == "grbl" else job.tcp
+            tp = interpret(prog, kinematics=job.kinematics, tcp=tcp)
             if isinstance(mesh_index, Future) and not mesh_index.done():
                 show("reading the mesh")
                 kdtree.load()  # while the mesh's thread finishes (a short program)

@@ -413,7 +413,7 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
                tool_library={k: c for k, (c, _) in profiles.tools.items() if isinstance(k, int)},
                operations=names,
                shape_named=shape is not None or corner_radius is not None or cutter is not None,
-               stock_mm=stock, diameter_bare=bare, kinematics=kinematics,
+               stock_mm=stock, diameter_bare=bare, kinematics=kinematics, tcp=pick(None, "tcp", None),
                machine_name=name if m is not None and accel == m.accel_rad_s2
                and max_rpm == m.max_rpm else None)
 

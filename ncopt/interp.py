@@ -23,7 +23,7 @@ from .errors import NcoptError
 from .expr import Params, Unknown
 from .feedmode import G93, G95, tip_feed_mm_min
 from .model import LineKind, LineState, Program, Toolpath
-from .orientation import Orientation, read_orientation, with_tool_axis
+from .orientation import Orientation, lean_toward_travel, read_orientation, with_tool_axis
 from .parse import unread_lines_warning
 from .planes import after_keyword
 from .refuse import MIN_ARC_RADIUS_MM, check_arc_centres, check_signs, check_words
@@ -113,12 +113,14 @@ class StartState:
 
 
 def interpret(prog: Program, start: StartState = StartState(),
-              kinematics: str | None = None) -> Toolpath:
+              kinematics: str | None = None, tcp: str | None = None) -> Toolpath:
     """Interpret a program into cutter locations.
 
     ``kinematics``: the machine's kinematics (``ncopt.kinematics``) for
     programs that tilt the tool with rotary axes; None: such moves are not
-    planned.
+    planned.  ``tcp``: ``"always"`` where the machine's control runs tool-tip
+    kinematics for every program (its profile says so); None: only where the
+    program switches tool-centre-point control on (``ncopt.orientation``).
 
     Returns
     -------
@@ -133,8 +135,9 @@ def interpret(prog: Program, start: StartState = StartState(),
     executed = _executed_lines(prog, lines, warnings)
     _check_semantics(prog, lines, executed)
     modal = _modal_state(lines, start, executed)
-    orient = read_orientation(prog, lines, modal, executed, kinematics)
+    orient = read_orientation(prog, lines, modal, executed, kinematics, tcp)
     pos_mm, known, last_event = _positions(prog, lines, modal, executed, poisoned, warnings)
+    orient = lean_toward_travel(orient, prog, lines, modal, executed, pos_mm)  # G43.5 Q
     _check_comp_corners(prog, lines, modal, pos_mm, known, executed)
     tp = _build_points(prog, lines, modal, pos_mm, known, executed, start, warnings, orient,
                        last_event)

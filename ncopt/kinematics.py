@@ -135,6 +135,13 @@ def check_name(name: str | None) -> str | None:
     raise UsageError(f"--kinematics must be one of {', '.join(NAMES)}, not {name!r}")
 
 
+def fitting(rotary) -> str:
+    """'xyzac-trt, xyzac-head-table or xyzac-trt-linuxcnc': the kinematics that turn all
+    the rotary axes named (letters), '' where none does."""
+    fits = [k.name for k in KINEMATICS.values() if set(rotary) <= set(k.axes)]
+    return (", ".join(fits[:-1]) + " or " + fits[-1]) if len(fits) > 1 else "".join(fits)
+
+
 def unit(v: np.ndarray) -> np.ndarray:
     """Rows scaled to unit length (zero rows stay zero)."""
     n = np.linalg.norm(v, axis=-1, keepdims=True)
@@ -148,6 +155,46 @@ def blend(e0: np.ndarray, e1: np.ndarray, frac: np.ndarray) -> np.ndarray:
     f = np.asarray(frac, dtype=np.float64)[..., None]
     mix = unit(e0 * (1.0 - f) + e1 * f)
     return np.where(np.linalg.norm(mix, axis=-1, keepdims=True) > 0.5, mix, e1)
+
+
+def lean(e: np.ndarray, d: np.ndarray, angle_deg) -> np.ndarray:
+    """(m, 3) the unit axes ``e`` leaned ``angle_deg`` toward the directions ``d`` (m, 3),
+    in the plane of the two (Fanuc G43.5 Q: the tool inclined toward the direction of
+    travel); NaN rows where ``d`` runs along ``e`` (no plane) or is zero."""
+    e = np.asarray(e, dtype=np.float64)
+    d = np.asarray(d, dtype=np.float64)
+    t = d - np.einsum("ij,ij->i", d, e)[:, None] * e
+    size = np.linalg.norm(t, axis=1)
+    ok = size > 1e-9 * np.maximum(np.linalg.norm(d, axis=1), 1e-300)
+    u = np.divide(t, size[:, None], out=np.zeros_like(t), where=ok[:, None])
+    q = np.radians(np.broadcast_to(np.asarray(angle_deg, dtype=np.float64), size.shape))
+    out = np.cos(q)[:, None] * e + np.sin(q)[:, None] * u
+    out[~ok] = np.nan
+    return out
+
+
+def turn_deg(e0: np.ndarray, e1: np.ndarray, a0: np.ndarray, a1: np.ndarray,
+             kinematics: str | None, at_least: float = 0.0) -> np.ndarray:
+    """(m,) how far the tool axis turns over each move, degrees: the length of its path
+    on the unit sphere from ``e0`` to ``e1`` (m, 3).  Where ``a0`` and ``a1`` (m, 3) give
+    both ends' angles in ``kinematics`` the control turns them linearly and the path is
+    followed (sampled every 1/360 of the move); elsewhere the axis moves along the great
+    circle, the angle between its ends.  Rows whose rotary turns add up to no more than
+    ``at_least`` degrees (which bounds the path) keep that angle, a lower bound."""
+    out = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", e0, e1), -1.0, 1.0)))
+    kin = KINEMATICS.get(kinematics)
+    if kin is None:
+        return out
+    both = np.isfinite(a0).all(axis=1) & np.isfinite(a1).all(axis=1)
+    bound = np.where(both, np.abs(np.nan_to_num(a1 - a0)).sum(axis=1), 0.0)
+    rows = np.flatnonzero(bound > at_least)
+    if rows.size:
+        f = np.linspace(0.0, 1.0, 361)[None, :, None]
+        ang = a0[rows, None, :] + (a1[rows] - a0[rows])[:, None, :] * f
+        e = kin.tool_axis(ang)
+        step = np.clip(np.einsum("ijk,ijk->ij", e[:, 1:], e[:, :-1]), -1.0, 1.0)
+        out[rows] = np.degrees(np.arccos(step)).sum(axis=1)
+    return out
 
 
 def tilt_deg(axis: np.ndarray) -> np.ndarray:

@@ -63,6 +63,8 @@ MACHINE_KEYS = {
                  "anywhere).",
     "kinematics": "5-axis: how the rotary axes tilt the tool: {kinematics} (default: none, "
                   "3-axis; programs of tool vectors need none).",
+    "tcp": "5-axis: always where the control runs tool-tip kinematics (TCP) for every program "
+           "(default: only where the program switches it on: G43.4/G43.5, TRAORI, M128, M428).",
     "note": "Free text for people; ncopt does not read it.",
 }
 TOOL_KEYS = ("type", "diameter_mm", "corner_radius_mm", "teeth", "note")
@@ -84,6 +86,7 @@ class MachineProfile:
     decimal_point: str | None = None  # Fanuc: calculator, is-b or is-c
     s_changes: str | None = None  # anywhere or between-passes (None: the control's default)
     kinematics: str | None = None  # 5-axis: a name of ncopt.kinematics.NAMES
+    tcp: str | None = None  # "always": the control runs tool-tip kinematics for every program
 
 
 @dataclass(frozen=True)
@@ -309,7 +312,7 @@ def _machine(name: str, m: dict, src: str, text: str = "") -> MachineProfile:
                           num("min_s_interval_ms", 0.0),
                           _one_of(m, "decimal_point", what, src),
                           _one_of(m, "s_changes", what, src),
-                          _kinematics(m, what, src))
+                          _kinematics(m, what, src), _one_of(m, "tcp", what, src))
 
 
 def _choices() -> dict:
@@ -319,7 +322,7 @@ def _choices() -> dict:
     from .kinematics import NAMES
 
     return {"control": tuple(CONTROLS), "decimal_point": DECIMAL_POINT_CONVENTIONS,
-            "s_changes": S_CHANGES, "kinematics": NAMES}
+            "s_changes": S_CHANGES, "kinematics": NAMES, "tcp": ("always",)}
 
 
 def _one_of(m: dict, key: str, what: str, src: str) -> str | None:
@@ -424,7 +427,8 @@ def _table(console, title: str, heads: tuple, rows: list) -> None:
 # ------------------------------------------------------------ profiles init ----
 _DEFAULTS = {f: MachineProfile.__dataclass_fields__[f].default
              for f in ("min_rpm", "max_feed_mm_min", "rapid_mm_min", "control",
-                       "min_s_interval_ms", "decimal_point", "s_changes", "kinematics")}
+                       "min_s_interval_ms", "decimal_point", "s_changes", "kinematics",
+                       "tcp")}
 
 
 def machine_template(name: str, base: MachineProfile | None = None) -> str:
