@@ -167,8 +167,8 @@ HEAD = {"traori": ["; ncopt 5-axis case", "G17 G71 G90 G94", "T1 D1", "S{s} M3",
                    "ORIWKS", "ORIVECT"],
         "g43.5": ["%", "O5001 (NCOPT 5-AXIS CASE)", "G17 G21 G90 G94", "T1 M6", "S{s} M3",
                   "G43.5 H1"],
-        "xyzac-trt": ["(ncopt 5-axis case)", "G17 G21 G90 G94", "T1 M6", "S{s} M3"]}
-TAIL = {"traori": ["TRAFOOF", "M30"], "g43.5": ["G49", "M30", "%"], "xyzac-trt": ["M2"]}
+        "xyzac-trt": ["(ncopt 5-axis case)", "M428", "G17 G21 G90 G94", "T1 M6", "S{s} M3"]}
+TAIL = {"traori": ["TRAFOOF", "M30"], "g43.5": ["G49", "M30", "%"], "xyzac-trt": ["M429", "M2"]}
 
 
 def program(case: Case, style: str, feed: str = "g94", f_mm_min: float = 1000.0,

@@ -214,6 +214,12 @@ def _loaded(mesh_index: MeshIndex | Future | None) -> MeshIndex | None:
     return mesh_index.result() if isinstance(mesh_index, Future) else mesh_index
 
 
+def tcp_of(job: Job, detected: str) -> str | None:
+    """The job's ``tcp`` for a program of the ``detected`` dialect: grbl has no
+    tool-centre-point control, whatever a profile says."""
+    return None if (job.control or detected) == "grbl" else job.tcp
+
+
 def read_text(text: str, path: str, job: Job, detected: str | None = None) -> Program:
     """Parse a program as the job's control reads it.
 
@@ -253,9 +259,7 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
             found = detect(text)
             prog = read_text(text, path, job, found.name)
             show("following the toolpath")
-            # grbl has no tool-centre-point control, whatever a profile says
-            tcp = None if (job.control or found.name) == "grbl" else job.tcp
-            tp = interpret(prog, kinematics=job.kinematics, tcp=tcp)
+            tp = interpret(prog, kinematics=job.kinematics, tcp=tcp_of(job, found.name))
             if isinstance(mesh_index, Future) and not mesh_index.done():
                 show("reading the mesh")
                 kdtree.load()  # while the mesh's thread finishes (a short program)

@@ -92,7 +92,8 @@ def inspect_text(text: str, path: str = "<input>", *, dialect: str | None = None
     issue = decimal_point_issue(prog, dialect or found.name, decimal_point)
     if decimal_point is not None:
         prog = apply_decimal_point(prog, decimal_point)
-    tp = interpret(prog, kinematics=kinematics)
+    tcp = None if job is None or (dialect or found.name) == "grbl" else job.tcp
+    tp = interpret(prog, kinematics=kinematics, tcp=tcp)
     motion = tp.motion[1:]
     feed = np.isin(motion, [Motion.LINEAR, Motion.ARC_CW, Motion.ARC_CCW])
     arcs = np.isin(motion, [Motion.ARC_CW, Motion.ARC_CCW])

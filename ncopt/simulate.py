@@ -51,7 +51,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .api import Job, nominal_cutting_data, read_text
+from .api import Job, nominal_cutting_data, read_text, tcp_of
+from .dialect import detect
 from .stamp import read_stamps, stamped_line
 from .contacts import (MAX_SAMPLES_PER_MOVE, centre_offsets, path_contacts_at_samples,
                        sample_axes, sample_points, samples_per_move)
@@ -279,7 +280,8 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
         raise UsageError(f"sample spacing must be a finite length, got {sample_mm}", path)
     if read is None:
         prog = read_text(prog_text, path, job)
-        read = prog, interpret(prog, kinematics=job.kinematics)
+        read = prog, interpret(prog, kinematics=job.kinematics,
+                               tcp=tcp_of(job, detect(prog_text).name))
     prog, tp = read
     _check_sample_count(tp, sample_mm, path)
     cutter, tool_mask, number, source = _evaluated_tool(prog, tp, job, path)
@@ -498,7 +500,7 @@ def tools_to_simulate(prog_text: str, job: Job, path: str = "<input>",
     from .inspect import judge_operations
 
     prog = read_text(prog_text, path, job)
-    tp = interpret(prog, kinematics=job.kinematics)
+    tp = interpret(prog, kinematics=job.kinematics, tcp=tcp_of(job, detect(prog.text).name))
     used = _feed_tools(tp)
     if job.tool is not None or len(used) <= 1:
         ops = ()

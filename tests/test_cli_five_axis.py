@@ -11,7 +11,7 @@ from ncopt.cli import Exit, app
 
 SPINDLE = ["--diameter", "10", "--teeth", "2", "--accel", "227", "--max-rpm", "18000",
            "--vc", "150", "--fz", "0.08"]
-ROTARY = ("G21 G90 G94\nS4000 M3\nG0 X0 Y0 Z5 A15 C30\nG1 Z0 F500\nG1 X10\n"
+ROTARY = ("G21 G90 G94 M428\nS4000 M3\nG0 X0 Y0 Z5 A15 C30\nG1 Z0 F500\nG1 X10\n"
           "G1 X20 C40\nG1 X30 C50\n")
 
 

@@ -45,7 +45,7 @@ def plane_program(lead_deg, tilt_deg, style="g43.5", passes=6, length=20.0):
     """Zig-zag passes along X on z = 0, the tool leaning lead_deg(x) toward the feed and
     tilt_deg sideways; returns the text and the exact R_eff per CL point."""
     lines = ["G21 G90 G94", "S3000 M3", "G0 X0 Y0 Z20"] + (["G43.5 H1"] if style == "g43.5"
-                                                          else [])
+                                                          else ["M428"])
     r_eff = []
     for j in range(passes):
         d = 1.0 if j % 2 == 0 else -1.0

@@ -242,7 +242,7 @@ def test_profiles_init_comments_every_key_with_its_unit(empty_folder):
         unit = {"accel_rad_s2": "rad/s^2", "max_rpm": "RPM", "min_rpm": "RPM",
                 "max_feed_mm_min": "mm/min", "rapid_mm_min": "mm/min", "min_s_interval_ms": "ms",
                 "control": "sinumerik", "decimal_point": "is-b", "s_changes": "between-passes",
-                "kinematics": "xyzac-trt", "note": "Free text"}[key]
+                "kinematics": "xyzac-trt", "tcp": "always", "note": "Free text"}[key]
         assert unit in said, (key, said)
     # the spindle is never guessed: until it is given, the file is refused
     path = empty_folder / "ncopt.toml"
@@ -300,7 +300,7 @@ def test_a_misspelt_key_is_refused_with_file_line_and_the_key_meant(empty_folder
     ('[machines.shop]\naccel_rad_s2 = 227\nmax_rpm = 1\ncolour = "red"\n',
      ":4: unknown key colour in machine 'shop'; the keys are accel_rad_s2, max_rpm, min_rpm, "
      "max_feed_mm_min, rapid_mm_min, control, min_s_interval_ms, decimal_point, s_changes, "
-     "kinematics, note"),
+     "kinematics, tcp, note"),
     ('[machines.shop]\naccel_rad_s2 = 227\nmax_rpm = 1\ncontrol = "sinumeric"\n',
      ": machine 'shop': control must be one of grbl, fanuc, linuxcnc, sinumerik, "
      "heidenhain-iso, generic, not 'sinumeric'; did you mean sinumerik?"),

@@ -114,7 +114,7 @@ def test_a_rotary_only_move_keeps_its_feed_in_g93_and_g94():
 def test_g93_blocks_are_timed_as_their_own_minutes_rotary_only_too():
     from ncopt.times import feed_minutes, untimed_moves
 
-    text = ("G21 G90 G94\nS3000 M3\nG0 X0 Y0 Z0 A0 C0\nG1 X1 F500\nG93\n"
+    text = ("G21 G90 G94 M428\nS3000 M3\nG0 X0 Y0 Z0 A0 C0\nG1 X1 F500\nG93\n"
             "G1 X3 F250\nG1 C30 F12.5\nG1 X4 F100\nG94\nM30\n")
     tp = interpret(parse_text(text, "t.nc"), kinematics="xyzac-trt")
     minutes = feed_minutes(tp)

@@ -27,7 +27,7 @@ def plane_mesh():
 
 def program(style: str) -> str:
     """Passes along X on z = 0 at fixed lead and tilt, S3000 F1000."""
-    out = ["G21 G90 G94", "S3000 M3", "G0 X0 Y0 Z20"] + (["G43.5 H1"] if style == "ijk" else [])
+    out = ["G21 G90 G94", "S3000 M3", "G0 X0 Y0 Z20"] + (["G43.5 H1"] if style == "ijk" else ["M428"])
     for j in range(5):
         d = 1.0 if j % 2 == 0 else -1.0
         e = np.array([np.sin(LEAD) * d, np.cos(LEAD) * np.sin(TILT), np.cos(LEAD) * np.cos(TILT)])

@@ -15,7 +15,7 @@ from ncopt.parse import parse_text
 # the programs here are a few straight lines: planned whatever their geometry says
 JOB = Job(machine=Machine(227, 15000), cutter=Cutter(10, 2), cutting=CuttingData(150, 0.08),
           operations=("all",))
-HEAD = "G21 G90 G94 G17\nS4000 M3\nG0 X0 Y0 Z5\nG1 Z0 F500\n"  # lines 0-3
+HEAD = "G21 G90 G94 G17 M428\nS4000 M3\nG0 X0 Y0 Z5 A0 C0\nG1 Z0 F500\n"  # lines 0-3
 
 
 def run(text: str, dialect: str | None = None, **kw):
@@ -88,7 +88,7 @@ def test_rotary_position_lost_until_stated_again(event, reason):
     tp = run(HEAD + "G1 X10 A5\nG1 X11 A0\n"  # 4-5
              f"{event}\n"  # 6 (1-based 7): loses the rotary position
              "G0 X0 Y0 Z5\nG1 Z0\n"  # 7-8 not planned: where is A?
-             "G1 X5 A0\n"  # 9 ends known, starts unknown
+             "G1 X5 A0 C0\n"  # 9 ends known, starts unknown
              "G1 X6\n")  # 10 planned
     p = planned_lines(tp)
     assert not p[8] and not p[9] and p[10]
@@ -158,7 +158,7 @@ def test_a_zero_tool_vector_is_a_located_error():
 ])
 def test_tilted_working_planes_are_not_planned_until_reset(tilt, reset, dialect):
     n_tilt = tilt.count("\n") + 1
-    text = (HEAD + "G1 X5\n" + tilt + "\nG0 X0 Y0 Z5\nG1 Z0\nG1 X10\n" + reset +
+    text = (HEAD.replace("A0 C0", "A0 B0 C0") + "G1 X5\n" + tilt + "\nG0 X0 Y0 Z5\nG1 Z0\nG1 X10\n" + reset +
             "\nG0 X0 Y0 Z5\nG1 Z0\nG1 X10\n")
     tp = run(text, dialect=dialect)
     p = planned_lines(tp)
@@ -184,7 +184,7 @@ def test_a_program_that_only_tilts_has_nothing_to_plan():
 
 
 def test_a_tilted_move_keeps_the_programs_s_and_f():
-    text = "G21 G90 G94\nS4000 M3\nG0 X0 Y0 Z5\nG1 Z0 F500\nG1 X10\nG1 X20 A10 C5\nG1 X30\n"
+    text = "G21 G90 G94 M428\nS4000 M3\nG0 X0 Y0 Z5 A0 C0\nG1 Z0 F500\nG1 X10\nG1 X20 A10 C5\nG1 X30\n"
     result = rewrite_text(text, JOB, "t.nc")
     out = result.text.splitlines()
     assert out[-2:] == text.splitlines()[-2:]  # the tilted lines, byte for byte
