@@ -52,12 +52,12 @@ from ncopt.dialect import detect  # noqa: E402
 from ncopt.errors import NcoptError, NothingToPlan, UsageError  # noqa: E402
 from ncopt.inspect import inspect_text  # noqa: E402
 from ncopt.model import Cutter, CuttingData, Machine  # noqa: E402
+from ncopt.stampline import STAMP_LINE as STAMP  # noqa: E402  (a line of a stamp, any version)
 
 CORPUS = (ROOT / "../shared/corpus").resolve()
-SUFFIXES = (".nc", ".ngc", ".tap", ".gcode")
+SUFFIXES = (".nc", ".ngc", ".tap", ".gcode", ".mpf", ".h")
 JOB = Job(machine=Machine(227, 15000))  # as a user runs it: tools and data from the program
 FALLBACK = Cutter(3, 2)  # for a tool the program names no diameter of
-STAMP = re.compile(r"^\s*[(;]\s*ncopt \S+ T-?\d+ ")
 OWORD = re.compile(r"\s*/?\s*(?:N\s*[\d.]+\s*)?O\s*[\d<#\[]", re.IGNORECASE)
 MORE_STRETCHES = re.compile(r"(\d+) more stretches not planned")
 MESSAGE_CHARS = 80  # of the message, after file:line:col
