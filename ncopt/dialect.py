@@ -48,12 +48,12 @@ _MARKS = {
         Mark("CYCLE8xx( call", r"\bCYCLE8\d\d\s*\(", True),
         Mark("G641/G642 continuous path", r"\bG64[12]\b", True),
         Mark('T="NAME" tool call', r"\bT\s*=\s*\"", True),
-        Mark("DEF REAL/INT/BOOL", r"^\s*(?:N\d+\s*)?DEF\s+(?:REAL|INT|BOOL)", True),
+        Mark("DEF REAL/INT/BOOL", r"^[ \t]*(?:N\d+\s*)?DEF\s+(?:REAL|INT|BOOL)", True),
         Mark("TRAORI/TRAFOOF", r"\bTRAORI\b|\bTRAFOOF\b", True),
         Mark("MSG( message", r"\bMSG\s*\(", True),
-        Mark("R1= parameter", r"^\s*(?:N\d+\s*)?R\d+\s*=", True),
+        Mark("R1= parameter", r"^[ \t]*(?:N\d+\s*)?R\d+\s*=", True),
         Mark("S1= spindle speed", r"\bS1\s*=", True),
-        Mark("T1 D1 block", r"^\s*(?:N\d+\s+)?T\d+\s+D\d+\s*$", False),
+        Mark("T1 D1 block", r"^[ \t]*(?:N\d+\s+)?T\d+\s+D\d+\s*$", False),
         # an arc's radius as CR=: Siemens' own word (outside a comment: Fusion writes
         # "(T1 D=6. CR=3. ...)" in its tool comments for every control)
         Mark("CR= arc radius", r"^(?:[^(;\n]|\([^)\n]*\))*?\bCR\s*=\s*[-+]?[.\d]", True),
@@ -63,11 +63,11 @@ _MARKS = {
         # of a Fanuc-style M98 subprogram (its own o-words, o100 sub, are no program number);
         # also after a UTF-8 byte order mark (read as latin-1)
         Mark("O1234 program number",
-             r"^(?:\xef\xbb\xbf)?\s*O\d{3,5}\b(?![ \t]*[A-Za-z][ \t]*[A-Za-z])", False),
+             r"^(?:\xef\xbb\xbf)?[ \t]*O\d{3,5}\b(?![ \t]*[A-Za-z][ \t]*[A-Za-z])", False),
         Mark("G43 H length offset", r"\bG43\s*H\d+|\bG43\s*Z[-\d.]+\s*H\d+", False, False),
         Mark("G28 G91 return", r"\bG28\s*G91|\bG91\s*G28", False, False),  # grbl's too
         Mark("G05.1 AI contour", r"\bG0?5\.1\b", True),
-        Mark("#100= macro variable", r"^\s*#\d+\s*=", False, False),  # LinuxCNC's too
+        Mark("#100= macro variable", r"^[ \t]*#\d+\s*=", False, False),  # LinuxCNC's too
         Mark("IF[..]GOTO", r"\bIF\s*\[.*\]\s*GOTO", True),
         Mark("M98 P subprogram call", r"\bM98\s*P", False, False),  # LinuxCNC 2.9 reads M98
         Mark("G65 P macro call", r"\bG65\s*P", True),
@@ -77,20 +77,20 @@ _MARKS = {
     ],
     LINUXCNC: [
         Mark("o-word sub/call/if",
-             r"^\s*[oO]\s*(?:\d+|<[^>]+>)\s+(?:sub|call|if|while|do|repeat)\b", True),
+             r"^[ \t]*[oO]\s*(?:\d+|<[^>]+>)\s+(?:sub|call|if|while|do|repeat)\b", True),
         Mark("#<named> parameter", r"#<[^>]+>", True),
         Mark("G64 P path tolerance", r"\bG64\s*P", True),
         Mark("(MSG, / (DEBUG, / (PRINT, comment", r"\(\s*(?:MSG|DEBUG|PRINT)\s*,", True),
-        Mark("M2 end", r"^\s*(?:N\d+\s*)?M2\s*$", False),
+        Mark("M2 end", r"^[ \t]*(?:N\d+\s*)?M2\s*$", False),
     ],
     GRBL: [
-        Mark("$ system command", r"^\s*\$[A-Z]", True),
+        Mark("$ system command", r"^[ \t]*\$[A-Z]", True),
         Mark("'grbl' in a comment", r"\bgrbl\b", False),
         Mark("laser mode M3/M4", r"\bM[67]\b.*laser|\blaser\b.*\bM[34]\b", False),
         Mark("$H homing", r"\$H\b", True),
     ],
     HEIDENHAIN: [
-        Mark("%NAME G71 * header", r"^\s*%\w+\s+G7[01]\s*\*", True),
+        Mark("%NAME G71 * header", r"^[ \t]*%\w+\s+G7[01]\s*\*", True),
         Mark("* block end", r"\*\s*$", True),
         Mark("N.. G98/G99 label", r"\bN\d+\s+G9[89]\b", False),
     ],

@@ -141,8 +141,9 @@ def operation_comments(prog: Program) -> dict[int, str]:
     block: list[tuple[int, str | None, bool]] = []  # consecutive comment-only lines
     raw = np.frombuffer(prog.text.encode("latin-1"), dtype=np.uint8)
     marks = np.flatnonzero((raw == ord("(")) | (raw == ord(";")))
+    comment_only = _comment_only_lines(prog)
     for i in np.unique(np.searchsorted(prog.line_start, marks, side="right") - 1).tolist():
-        if i >= prog.n_lines or not _comment_only(prog, i):
+        if i >= prog.n_lines or not comment_only[i]:
             continue
         if block and block[-1][0] != i - 1:
             _block_names(prog, block, found)
@@ -210,14 +211,14 @@ def _block_names(prog: Program, block: list, found: dict) -> None:
         found.setdefault(*names[-1])  # the line before the tool call names what follows
 
 
-def _comment_only(prog: Program, i: int) -> bool:
-    """The line holds a comment and no word but a block number."""
-    if prog.line_kind[i] == LineKind.BLANK:
-        return True
-    if prog.line_kind[i] != LineKind.WORDS:
-        return False
-    a, b = np.searchsorted(prog.word_line, [i, i + 1])
-    return bool(np.all(prog.word_letter[a:b] == ord("N")))
+def _comment_only_lines(prog: Program) -> np.ndarray:
+    """(n_lines,) bool: the line holds a comment (or nothing) and no word but a block
+    number; for every line at once (one search of the word table per comment line cost
+    3 ms at 1M blocks: 14 s for a program with a comment every 200 lines)."""
+    other = np.zeros(prog.n_lines, dtype=bool)
+    other[prog.word_line[prog.word_letter != ord("N")]] = True
+    kind = prog.line_kind
+    return (kind == LineKind.BLANK) | ((kind == LineKind.WORDS) & ~other)
 
 
 def _framed(prog: Program, i: int) -> bool:
