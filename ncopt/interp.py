@@ -668,6 +668,11 @@ def _check_feed(prog, modal, move_lines) -> None:
                      & (modal.feed_mode[feed_moves] == 940)]
     if bad.size:
         _fail(prog, bad[0], "feed move with zero feed rate; add an F word before it")
+    # inverse time: F is 1/minutes, F0 a move that never ends (LinuxCNC refuses it too)
+    zero = feed_moves[(modal.feed[feed_moves] <= 0) & (modal.feed_mode[feed_moves] == 930)]
+    if zero.size:
+        _fail(prog, zero[0], "inverse-time (G93) move with F0 (F is 1/minutes there): give "
+              "the move's F")
 
 
 def _switched(on: np.ndarray, off: np.ndarray, executed: np.ndarray) -> np.ndarray:

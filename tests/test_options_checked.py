@@ -322,10 +322,8 @@ def test_a_word_beyond_any_number_is_a_located_error(tmp_path):
     assert "beyond any control's range" in result.stderr
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "G93 with F0 is planned today (F0 becomes F841); LinuxCNC refuses it: interp.py's "
-    "_check_feed checks G94 only"))
 def test_inverse_time_with_f0_is_refused(tmp_path):
+    """G93 with F0 was planned (F0 became F841); LinuxCNC refuses it, and so does ncopt."""
     lines = dome(8).decode().splitlines()
     lines[6] = "G93 " + lines[6] + " F0"
     lines[7] = "G94 " + lines[7] + " F800"
@@ -333,6 +331,8 @@ def test_inverse_time_with_f0_is_refused(tmp_path):
     path.write_text("\n".join(lines) + "\n")
     result = invoke(["rewrite", path, *CUTTER, *SPINDLE, "-o", tmp_path / "o.nc"])
     assert result.exit_code == Exit.PROGRAM
+    assert f"{path}:7:" in result.stderr and "inverse-time (G93) move with F0" in result.stderr
+    assert not (tmp_path / "o.nc").exists()
 
 
 # --------------------------------------------------------- the property: nothing lost ----
