@@ -191,7 +191,8 @@ def write_unified(a_name: str, b_name: str, a_lines, b_lines, out: TextIO) -> No
     if opcodes is None:
         lines = difflib.unified_diff(a_lines, b_lines, a_name, b_name, lineterm="", n=CONTEXT)
     else:
-        lines = _unified(a_name, b_name, a_lines, b_lines, opcodes, CONTEXT)
+        lines = (chunk for chunk in _unified(a_name, b_name, a_lines, b_lines, opcodes, CONTEXT)
+                 if chunk is not None)
     out.write("".join(line + "\n" for line in lines))
 
 
@@ -232,14 +233,27 @@ def _aligned_opcodes(a_lines: list[str], b_lines: list[str]) -> list | None:
     rest = na - i
     differ = [k for k, (x, y) in enumerate(zip(a_lines[i:], b_lines[j:])) if x != y]
     done = 0
-    for k in differ:
-        if k > done:
-            add("equal", i + done, j + done, k - done, k - done)
-        add("replace", i + k, j + k, 1, 1)
-        done = k + 1
+    for first, last in _runs(differ):
+        if first > done:
+            add("equal", i + done, j + done, first - done, first - done)
+        add("replace", i + first, j + first, last - first, last - first)
+        done = last
     if rest > done:
         add("equal", i + done, j + done, rest - done, rest - done)
     return [tuple(op) for op in _merged(ops)]
+
+
+def _runs(sorted_ints: list[int]):
+    """(first, last + 1) of each run of consecutive numbers."""
+    if not sorted_ints:
+        return
+    first = prev = sorted_ints[0]
+    for k in sorted_ints[1:]:
+        if k != prev + 1:
+            yield first, prev + 1
+            first = k
+        prev = k
+    yield first, prev + 1
 
 
 def _merged(ops: list[list]) -> list[list]:
@@ -269,12 +283,12 @@ def _unified(a_name, b_name, a_lines, b_lines, opcodes, n: int):
                f"+{difflib._format_range_unified(first[3], last[4])} @@")
         for tag, i1, i2, j1, j2 in group:
             if tag == "equal":
-                yield from (" " + line for line in a_lines[i1:i2])
+                yield " " + "\n ".join(a_lines[i1:i2]) if i2 > i1 else None
                 continue
-            if tag in ("replace", "delete"):
-                yield from ("-" + line for line in a_lines[i1:i2])
-            if tag in ("replace", "insert"):
-                yield from ("+" + line for line in b_lines[j1:j2])
+            if tag in ("replace", "delete") and i2 > i1:
+                yield "-" + "\n-".join(a_lines[i1:i2])
+            if tag in ("replace", "insert") and j2 > j1:
+                yield "+" + "\n+".join(b_lines[j1:j2])
 
 
 def show_diff(a_name: str, b_name: str, a_lines, b_lines, plain: bool = False,
