@@ -24,7 +24,7 @@ from .dialect import detect, resolve_decimal_point
 from .errors import VerificationError
 from .feedmode import inverse_time_words
 from .geometry import MeshIndex, load_stl
-from .interp import ffill, interpret
+from .interp import ffill, interpret, tcp_for
 from .memory import release_freed_memory, small_pages, working_memory
 from .model import Cutter, CuttingData, Machine, Motion, PlanOptions, Program, Toolpath
 from .parse import parse_text
@@ -115,8 +115,8 @@ class Summary:
     stepover_mm: float | None = None
     one_sided_points: int = 0
     no_cross_points: int = 0
-    # without a mesh: the share of the planned cut (by length) whose contact the toolpath
-    # cannot show, planned at the cutter's full radius (ncopt.contacts.unknown_contact)
+    # the share of the planned cut (by length) whose contact is not known (without a mesh,
+    # or where the mesh has no part), planned at the cutter's full radius (ncopt.contacts)
     unknown_contact_pct: float = 0.0
     # 1-based lines of the cutting blocks where the spindle, ramping at its acceleration,
     # cannot follow the S words written (fz leaves its band): the check simulate makes
@@ -215,9 +215,8 @@ def _loaded(mesh_index: MeshIndex | Future | None) -> MeshIndex | None:
 
 
 def tcp_of(job: Job, detected: str) -> str | None:
-    """The job's ``tcp`` for a program of the ``detected`` dialect: grbl has no
-    tool-centre-point control, whatever a profile says."""
-    return None if (job.control or detected) == "grbl" else job.tcp
+    """The job's ``tcp`` for a program of the ``detected`` dialect (:func:`tcp_for`)."""
+    return tcp_for(job.tcp, job.control or detected)
 
 
 def read_text(text: str, path: str, job: Job, detected: str | None = None) -> Program:
@@ -293,8 +292,9 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
                 masked_input = pool.submit(_masked_input, prog) if job.verify else None
                 edits = plan_edits(prog, consumers, s_style, f_style, work.scope.editable,
                                    rapid_lines(tp, prog.n_lines))
+                minutes = _cut_minutes(tp, idx, targets, job.machine)
                 stamp = (stamp_edit(prog, work.plans, 100.0 * job.options.fz_tolerance,
-                                    _stamp_info(path, job, tp, idx, targets))
+                                    _stamp_info(path, job, minutes))
                          if job.stamp else None)
                 out = apply_edits(text, edits + ([stamp] if stamp else ()))
                 counts = (len(edits), edits.s_words, edits.f_words)
@@ -306,7 +306,7 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
             verify(prog, tp, out, consumers, s_style, f_style, job, found.name, work.scope,
                    masked_input)
         del masked_input
-        summary = _summary(prog, tp, idx, work, targets, counts, mesh_edge, job)
+        summary = _summary(prog, tp, idx, work, counts, mesh_edge, job, minutes)
         summary = replace(summary, warnings=summary.warnings + lag_warnings,
                           lag_lines=lag_lines)
         source = job.control_from if job.control else (
@@ -437,11 +437,10 @@ def verify(prog: Program, tp: Toolpath, out: str, targets: Targets, s_style, f_s
                                 prog.path, line)
 
 
-def _stamp_info(path: str, job: Job, tp: Toolpath, idx: planner.BlockIndex,
-                targets: Targets) -> StampInfo:
+def _stamp_info(path: str, job: Job, minutes: tuple) -> StampInfo:
     """The stamp's header: today (or SOURCE_DATE_EPOCH's day, for reproducible outputs),
     the program's file name, the machine, and the whole program's estimated cutting time
-    before and after (as the summary gives it)."""
+    before and after (``minutes``: :func:`_cut_minutes`, as the summary gives it)."""
     import datetime
     import os
 
@@ -451,9 +450,7 @@ def _stamp_info(path: str, job: Job, tp: Toolpath, idx: planner.BlockIndex,
     m = job.machine
     spindle = f"{m.accel_rad_s2:g} rad/s2, {m.max_rpm:g} RPM"
     machine = f"{job.machine_name}: {spindle}" if job.machine_name else spindle
-    cap = m.max_feed_mm_min
-    before = float(feed_minutes(tp, None, cap).sum())
-    after = float(feed_minutes(tp, _feed_after(tp, idx, targets), cap).sum())
+    before, after = (float(t.sum()) for t in minutes)
     source = "stdin" if path in ("-", "<stdin>", "<input>") else Path(path).name
     return StampInfo(day.isoformat(), source, machine, before, after)
 
@@ -546,12 +543,17 @@ def _masked_without(prog: Program, drop: list) -> str:
     return "".join(line + "\n" for i, line in enumerate(head) if i not in drop) + rest
 
 
-def _summary(prog, tp, idx, work: Work, targets: Targets, counts, mesh_edge, job) -> Summary:
-    """``counts``: (edits, S words, F words) written.  Times: :mod:`ncopt.times`."""
-    f_after = _feed_after(tp, idx, targets)
-    cap = job.machine.max_feed_mm_min
-    t_before = feed_minutes(tp, None, cap)
-    t_after = feed_minutes(tp, f_after, cap)
+def _cut_minutes(tp: Toolpath, idx: planner.BlockIndex, targets: Targets,
+                 machine: Machine) -> tuple[np.ndarray, np.ndarray]:
+    """Minutes of every move before and after the rewrite (:mod:`ncopt.times`), for the
+    stamp and the summary alike."""
+    cap = machine.max_feed_mm_min
+    return feed_minutes(tp, None, cap), feed_minutes(tp, _feed_after(tp, idx, targets), cap)
+
+
+def _summary(prog, tp, idx, work: Work, counts, mesh_edge, job, minutes) -> Summary:
+    """``counts``: (edits, S words, F words) written; ``minutes``: :func:`_cut_minutes`."""
+    t_before, t_after = minutes
     rows = tuple(_op_row(o, k, tp, work, t_before, t_after) for k, o in enumerate(work.ops))
     plans = work.plans
     n_edits, s_words, f_words = counts

@@ -25,8 +25,9 @@ from .geometry import MeshIndex, mesh_contacts
 from .kinematics import KINEMATICS, blend
 from .memory import release_freed_memory
 from .model import Contacts, Cutter, Toolpath
-from .pathnormals import (NO_CROSS, ONE_SIDED, ONE_SIDED_TILT_DEG, PathNormals,
-                          contacts_from_path, path_normals, tilt_from_axis)
+from .pathnormals import NO_CROSS, ONE_SIDED, ONE_SIDED_TILT_DEG, PathNormals
+from .pathnormals import across as across_axis
+from .pathnormals import contacts_from_path, path_normals, tilt_from_axis
 from .remaining import r_eff_material_mm
 from .sampling import Probe, Refinement, adaptive_samples
 from .tools import center_offset_mm, r_eff_mm
@@ -65,11 +66,11 @@ class Sampled:
     estimate: PathNormals | None = None  # mesh-free only
     gap_mm: np.ndarray | None = None  # (m,) with a mesh: clearance of the cutter, mm (< 0 inside)
     axis: np.ndarray | None = None  # (m, 3) unit tool axis per sample; None: +Z
-    # (m,) bool, mesh-free only: planned at the cutter's largest radius, the contact being
-    # unknown (:func:`unknown_contact`)
+    # (m,) bool: planned at the cutter's largest radius, the contact being unknown
+    # (without a mesh, :func:`unknown_contact`; with one, :func:`_air_below_the_top`)
     unknown: np.ndarray | None = None
-    top_mm: float = float("inf")  # mesh-free: the highest point the cuts reach (mm, along up)
-    up: np.ndarray | None = None  # (3,) mesh-free: the direction of top_mm (up_vector)
+    top_mm: float = float("inf")  # the highest point the cuts reach (mm, along up)
+    up: np.ndarray | None = None  # (3,) the direction of top_mm (up_vector)
 
 
 def samples_per_move(tp: Toolpath, sample_mm: float) -> np.ndarray:
@@ -186,7 +187,7 @@ def mesh_contacts_at_samples(tp: Toolpath, cutter: Cutter, mesh_index: MeshIndex
 
 
 def unknown_contact(tp: Toolpath, selected: np.ndarray, air: np.ndarray,
-                    estimate: PathNormals) -> np.ndarray:
+                    estimate: PathNormals, up: np.ndarray, top_mm: float) -> np.ndarray:
     """(n,) bool: the points of ``selected`` feed moves whose contact the toolpath cannot
     tell, without a mesh.
 
@@ -197,13 +198,13 @@ def unknown_contact(tp: Toolpath, selected: np.ndarray, air: np.ndarray,
     (its lower end at most ``AIR_CLEARANCE_MM`` under the highest point of the other
     cuts: a plunge that ends where the cut begins touches only there): a Fusion parallel
     pass over a tall part runs down the part's side and along the floor at its foot at
-    the cutting feed, and the ball's side touches the wall all the way.
+    the cutting feed, and the ball's side touches the wall all the way.  ``up``,
+    ``top_mm``: :func:`up_vector` and :func:`top_of_cut`.
     """
-    up = up_vector(tp, selected)
     h = tp.xyz_mm @ up
     cuts = selected & ~air
     low = np.minimum(h, np.concatenate((h[:1], h[:-1])))  # the lower end of each move
-    above = low >= top_of_cut(tp, selected, air, up) - AIR_CLEARANCE_MM
+    above = low >= top_mm - AIR_CLEARANCE_MM
     return (selected & air & ~above) | (cuts & (estimate.confidence == NO_CROSS))
 
 
@@ -249,7 +250,8 @@ def _at_largest_radius(contacts: Contacts, unknown: np.ndarray, cutter: Cutter,
     if not unknown.any():
         return contacts
     at = np.flatnonzero(unknown)
-    across = _across_axis(None if axis is None else axis[at], at.size)
+    across = (np.tile([1.0, 0.0, 0.0], (at.size, 1)) if axis is None
+              else across_axis(axis[at]))  # +X for +Z
     normal, r_eff, cc = contacts.normal.copy(), contacts.r_eff_mm.copy(), contacts.cc_mm.copy()
     centre = cc[at] + cutter.corner_radius_mm * normal[at]
     normal[at] = across
@@ -257,16 +259,6 @@ def _at_largest_radius(contacts: Contacts, unknown: np.ndarray, cutter: Cutter,
     cc[at] = centre - cutter.corner_radius_mm * across
     cutting = contacts.cutting | unknown
     return Contacts(cc_mm=cc, normal=normal, r_eff_mm=r_eff, cutting=cutting)
-
-
-def _across_axis(axis: np.ndarray | None, m: int) -> np.ndarray:
-    """(m, 3) unit vectors perpendicular to the tool axis (+X for +Z)."""
-    if axis is None:
-        return np.tile([1.0, 0.0, 0.0], (m, 1))
-    u = np.cross([0.0, 1.0, 0.0], axis)
-    small = np.linalg.norm(u, axis=1) < 0.5
-    u[small] = np.cross(axis[small], [1.0, 0.0, 0.0])
-    return u / np.linalg.norm(u, axis=1)[:, None]
 
 
 def air_moves(tp: Toolpath) -> np.ndarray:
@@ -339,11 +331,12 @@ def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index:
                                                     cutter)
         else:
             contacts, estimate = _path_contacts_5axis(tp, cutter, cutting)
-        unknown = unknown_contact(tp, selected, air, estimate)
         up = up_vector(tp, selected)
+        top = top_of_cut(tp, selected, air, up)
+        unknown = unknown_contact(tp, selected, air, estimate, up, top)
         sampled = Sampled(_at_largest_radius(contacts, unknown, cutter, tp.tool_axis),
                           np.arange(tp.n), estimate, axis=tp.tool_axis, unknown=unknown,
-                          top_mm=top_of_cut(tp, selected, air, up), up=up)
+                          top_mm=top, up=up)
     if method.name == "material":
         sampled = replace(sampled, contacts=_with_material(tp, cutter, sampled, method))
     release_freed_memory(force=mesh_index is not None)
@@ -354,8 +347,8 @@ def _air_below_the_top(tp: Toolpath, cutter: Cutter, selected: np.ndarray, sampl
                        frac: np.ndarray) -> Sampled:
     """With a mesh (3 axes): the samples of cuts along the surface (not plunges or
     retracts) that the mesh puts far in the air (more than AIR_FAR cutter radii from
-    every face) though they run below the top of the cut it touches.  A mesh that lacks part of the part (half of it, a floor) would have them
-    planned as air, the spindle free (a half bowl: vc +787 %); they are planned where the
+    every face) though they run below the top of the cut it touches.  A mesh that lacks
+    part of the part (half of it, a floor) would have them planned as air, the spindle free (a half bowl: vc +787 %); they are planned where the
     cutter cuts at its full radius, as a contact the toolpath cannot show without a mesh.
     With the whole part, only a few samples of links and lead-ins are so."""
     c, point = sampled.contacts, sampled.point

@@ -191,8 +191,7 @@ def write_unified(a_name: str, b_name: str, a_lines, b_lines, out: TextIO) -> No
     if opcodes is None:
         lines = difflib.unified_diff(a_lines, b_lines, a_name, b_name, lineterm="", n=CONTEXT)
     else:
-        lines = (chunk for chunk in _unified(a_name, b_name, a_lines, b_lines, opcodes, CONTEXT)
-                 if chunk is not None)
+        lines = _unified(a_name, b_name, a_lines, b_lines, opcodes, CONTEXT)
     out.write("".join(line + "\n" for line in lines))
 
 
@@ -283,7 +282,8 @@ def _unified(a_name, b_name, a_lines, b_lines, opcodes, n: int):
                f"+{difflib._format_range_unified(first[3], last[4])} @@")
         for tag, i1, i2, j1, j2 in group:
             if tag == "equal":
-                yield " " + "\n ".join(a_lines[i1:i2]) if i2 > i1 else None
+                if i2 > i1:
+                    yield " " + "\n ".join(a_lines[i1:i2])
                 continue
             if tag in ("replace", "delete") and i2 > i1:
                 yield "-" + "\n-".join(a_lines[i1:i2])

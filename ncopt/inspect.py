@@ -11,7 +11,7 @@ import numpy as np
 
 from .dialect import (HEIDENHAIN, SINUMERIK, apply_decimal_point,
                       check_convention_applies, decimal_point_issue, detect)
-from .interp import INCH_HEADER, interpret
+from .interp import INCH_HEADER, interpret, tcp_for
 from .kinematics import tilt_deg
 from .times import feed_minutes
 from .model import LineKind, Motion, Program
@@ -92,7 +92,7 @@ def inspect_text(text: str, path: str = "<input>", *, dialect: str | None = None
     issue = decimal_point_issue(prog, dialect or found.name, decimal_point)
     if decimal_point is not None:
         prog = apply_decimal_point(prog, decimal_point)
-    tcp = None if job is None or (dialect or found.name) == "grbl" else job.tcp
+    tcp = None if job is None else tcp_for(job.tcp, dialect or found.name)
     tp = interpret(prog, kinematics=kinematics, tcp=tcp)
     motion = tp.motion[1:]
     feed = np.isin(motion, [Motion.LINEAR, Motion.ARC_CW, Motion.ARC_CCW])

@@ -112,6 +112,12 @@ class StartState:
     chord_tol_mm: float = 0.005
 
 
+def tcp_for(tcp: str | None, dialect: str) -> str | None:
+    """A machine's ``tcp`` setting for a program of ``dialect``: grbl has no
+    tool-centre-point control, whatever a profile says."""
+    return None if dialect == "grbl" else tcp
+
+
 def interpret(prog: Program, start: StartState = StartState(),
               kinematics: str | None = None, tcp: str | None = None) -> Toolpath:
     """Interpret a program into cutter locations.

@@ -150,7 +150,7 @@ def _fit_cross(pts, tangent, all_pts, nb, dist, other, axis=None):
     up = np.array([0.0, 0.0, 1.0]) if axis is None else axis
     u = np.cross(tangent, up)  # horizontal, across the pass
     vertical = row_norms(u) < 1e-6  # a plunge: any horizontal direction will do
-    u[vertical] = [1.0, 0.0, 0.0] if axis is None else _across(axis[vertical])
+    u[vertical] = [1.0, 0.0, 0.0] if axis is None else across(axis[vertical])
     u /= np.maximum(row_norms(u), 1e-12)[:, None]
     v = np.cross(u, tangent)  # perpendicular to the tangent, in its vertical plane
     v[_up(v, axis) < 0] *= -1.0
@@ -222,7 +222,7 @@ def _up(v: np.ndarray, axis: np.ndarray | None) -> np.ndarray:
     return v[:, 2] if axis is None else np.einsum("ij,ij->i", v, axis)
 
 
-def _across(axis: np.ndarray) -> np.ndarray:
+def across(axis: np.ndarray) -> np.ndarray:
     """(m, 3) unit vectors perpendicular to each tool axis (+X for +Z)."""
     u = np.cross([0.0, 1.0, 0.0], axis)
     small = row_norms(u) < 0.5
@@ -260,7 +260,7 @@ def tilt_from_axis(normal: np.ndarray, angle_rad: np.ndarray,
         side = normal - c[:, None] * axis
         hn = row_norms(side)
         side = np.where(hn[:, None] > 1e-12, side / np.maximum(hn, 1e-12)[:, None],
-                        _across(axis))
+                        across(axis))
         polar = np.arccos(c) + angle_rad
         return np.cos(polar)[:, None] * axis + np.sin(polar)[:, None] * side
     polar = np.arccos(np.clip(normal[:, 2], -1.0, 1.0)) + angle_rad

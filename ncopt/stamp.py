@@ -241,24 +241,25 @@ def stamp_edit(prog: Program, plans, band_pct: float | None = None,
     if old:
         start, end = int(prog.line_start[old[0]]), int(prog.line_start[old[-1] + 1])
         present = prog.text[start:end].splitlines()
-        # the plan and the machine it was made for: the same, the stamp stays (a re-run's
+        # the plan and the machine it was made for the same: the stamp stays (a re-run's
         # times "before" are the planned program's own, its date and file name today's)
-        now = [f"; {b}" if semicolon else f"({b})" for b in _plan_lines(plans, band_pct)
-               + _info_lines(info, None)[2:3]]
-        kept = [ln for ln in present if _OP_A.match(ln) or _OP_B.match(ln) or _MACHINE.match(ln)]
-        if info is None or (kept == now[-1:] + now[:-1] and any(_INFO.match(ln) for ln in present)):
-            text = nl.join(stamp_lines(plans, semicolon, band_pct, info)) + nl
-            if info is not None or prog.text[start:end] == text:
-                return None  # it plans the same: the stamp stays, its date and source too
-            return Edit(start, end, text)
+        if info is not None and any(_INFO.match(ln) for ln in present) and (
+                _decisive(present) == _decisive(stamp_lines(plans, semicolon, band_pct, info))):
+            return None
         source = next((_body(ln) for ln in present if _FROM.match(ln)), None)
         text = nl.join(stamp_lines(plans, semicolon, band_pct, info, source)) + nl
-        return Edit(start, end, text)
+        return None if prog.text[start:end] == text else Edit(start, end, text)
     text = nl.join(stamp_lines(plans, semicolon, band_pct, info)) + nl
     at = int(prog.line_start[_stamp_position(prog)])
     if at == len(prog.text) and prog.text and not prog.text.endswith("\n"):
         text = nl + text
     return Edit(at, at, text)
+
+
+def _decisive(lines: list[str]) -> list[str]:
+    """The stamp lines a re-run must find as it would write them: the plans' data and the
+    machine."""
+    return [ln for ln in lines if _OP_A.match(ln) or _OP_B.match(ln) or _MACHINE.match(ln)]
 
 
 def _body(line: str) -> str:

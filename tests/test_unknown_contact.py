@@ -18,7 +18,7 @@ import pytest
 
 import wallpart
 from ncopt.api import Job, rewrite_text
-from ncopt.contacts import air_moves, unknown_contact
+from ncopt.contacts import air_moves, top_of_cut, unknown_contact, up_vector
 from ncopt.geometry import MeshIndex, load_stl, mesh_contacts
 from ncopt.interp import interpret
 from ncopt.model import Cutter, Machine
@@ -92,7 +92,8 @@ def test_a_move_above_everything_cut_is_air_and_one_below_is_not():
     selected = np.isin(tp.motion, [1, 2, 3]) & tp.known
     air = air_moves(tp)
     est = PathNormals(np.tile([0.0, 0.0, 1.0], (tp.n, 1)), np.full(tp.n, 2, np.int8), 2.0)
-    unknown = unknown_contact(tp, selected, air, est)
+    up = up_vector(tp, selected)
+    unknown = unknown_contact(tp, selected, air, est, up, top_of_cut(tp, selected, air, up))
     lines = text.splitlines()
     approach = int(np.flatnonzero(tp.line == lines.index("N60 G1 Z7.359 F1000."))[0])
     plunge = int(np.flatnonzero(tp.line == lines.index("N65 Z-15. F333.33"))[0])
