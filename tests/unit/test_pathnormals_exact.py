@@ -44,7 +44,7 @@ def reference(centers, path, cutting, axis=None, k=pn.K_NEIGHBOURS):
         up = np.array([0.0, 0.0, 1.0]) if up_ax is None else up_ax
         u = np.cross(t, up)
         vertical = np.linalg.norm(u, axis=1) < 1e-6
-        u[vertical] = [1.0, 0.0, 0.0] if up_ax is None else pn._across(up_ax[vertical])
+        u[vertical] = [1.0, 0.0, 0.0] if up_ax is None else pn.across(up_ax[vertical])
         u /= np.maximum(np.linalg.norm(u, axis=1), 1e-12)[:, None]
         v = np.cross(u, t)
         v[pn._up(v, up_ax) < 0] *= -1.0
@@ -80,7 +80,7 @@ def reference_tilt(normal, angle_rad, axis=None):
         side = normal - c[:, None] * axis
         hn = np.linalg.norm(side, axis=1)
         side = np.where(hn[:, None] > 1e-12, side / np.maximum(hn, 1e-12)[:, None],
-                        pn._across(axis))
+                        pn.across(axis))
         polar = np.arccos(c) + angle_rad
         return np.cos(polar)[:, None] * axis + np.sin(polar)[:, None] * side
     polar = np.arccos(np.clip(normal[:, 2], -1.0, 1.0)) + angle_rad
