@@ -41,9 +41,9 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.dirname(HERE))
 
 from ncopt.api import rewrite_file  # noqa: E402
-from ncopt.cli import make_job  # noqa: E402
-from ncopt.kinematics import KINEMATICS, blend  # noqa: E402
-from ncopt.simulate import simulate_file  # noqa: E402
+from ncopt.cli.app import make_job  # noqa: E402
+from ncopt.motion.kinematics import KINEMATICS, blend  # noqa: E402
+from ncopt.simulate.replay import simulate_file  # noqa: E402
 
 VC, FZ, Z, ACCEL, S_MAX = 150.0, 0.08, 2, 227.0, 18000.0
 TOL_MM, STEP_MM = 0.05, 0.05

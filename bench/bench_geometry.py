@@ -1,4 +1,4 @@
-"""Benchmarks and accuracy study for ``ncopt.geometry``.
+"""Benchmarks and accuracy study for ``ncopt.contacts.geometry``.
 
     python bench/bench_geometry.py speed     # 1M-triangle mesh, 1M ball centres
     python bench/bench_geometry.py normals   # contact-normal error vs mesh size
@@ -45,7 +45,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from ncopt import geometry, tools  # noqa: E402
+from ncopt.contacts import geometry# noqa: E402
+from ncopt.contacts import cutters
 from ncopt.model import Cutter  # noqa: E402
 
 # ---------------------------------------------------------------- meshing
@@ -158,7 +159,7 @@ def angle_deg(a, b):
 def error_stats(n_est, n_true, R):
     ang = angle_deg(n_est, n_true)
     cutter = Cutter(2 * R, 2)
-    r_true, r_est = tools.r_eff_mm(cutter, n_true), tools.r_eff_mm(cutter, n_est)
+    r_true, r_est = cutters.r_eff_mm(cutter, n_true), cutters.r_eff_mm(cutter, n_est)
     keep = r_true >= 0.2 * R
     with np.errstate(divide="ignore"):
         over = 100.0 * (r_true[keep] / r_est[keep] - 1.0)

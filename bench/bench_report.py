@@ -33,7 +33,7 @@ SPINDLE = ["--accel", "227", "--max-rpm", "15000"]
 
 def ncopt(*args) -> float:
     t0 = time.perf_counter()
-    subprocess.run([sys.executable, "-c", "from ncopt.cli import main; main()",
+    subprocess.run([sys.executable, "-c", "from ncopt.cli.app import main; main()",
                     *map(str, args)], check=True,
                    cwd=ROOT, capture_output=True)
     return time.perf_counter() - t0

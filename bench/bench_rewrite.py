@@ -71,32 +71,32 @@ HOOKS = (
     ("api.rewrite_file", "ncopt.api:rewrite_file"),
     ("mesh load (thread)", "ncopt.api:_mesh_index"),
     ("waiting for the mesh", "ncopt.api:_loaded"),
-    ("mesh load: STL read", "ncopt.geometry:load_stl"),
-    ("mesh load: BVH + normals", "ncopt.geometry:MeshIndex.__init__"),
-    ("parse", "ncopt.parse:parse_text"),
-    ("interpret", "ncopt.interp:interpret"),
-    ("block index", "ncopt.planner:block_index"),
-    ("tool table from comments", "ncopt.tooltable:tool_table"),
+    ("mesh load: STL read", "ncopt.contacts.geometry:load_stl"),
+    ("mesh load: BVH + normals", "ncopt.contacts.geometry:MeshIndex.__init__"),
+    ("parse", "ncopt.reading.parse:parse_text"),
+    ("interpret", "ncopt.motion.interp:interpret"),
+    ("block index", "ncopt.planning.spindle:block_index"),
+    ("tool table from comments", "ncopt.planning.tooltable:tool_table"),
     ("nominal vc/fz", "ncopt.api:nominal_cutting_data"),
-    ("contacts_for", "ncopt.contacts:contacts_for"),
-    ("sampling (even, before issue 14)", "ncopt.contacts:sample_points"),
-    ("sampling (where the geometry asks)", "ncopt.sampling:adaptive_samples"),
-    ("contacts (mesh)", "ncopt.geometry:mesh_contacts"),
-    ("contacts (toolpath normals)", "ncopt.pathnormals:contacts_from_path"),
-    ("blocks", "ncopt.planner:blocks_from_contacts"),
-    ("planning", "ncopt.planner:plan"),
-    ("profile (look-ahead)", "ncopt.planner:lookahead"),
-    ("profile (forward)", "ncopt.planner:forward"),
-    ("emission (S commands)", "ncopt.planner:emit_rpm"),
-    ("styles", "ncopt.rewrite:detect_style"),
+    ("contacts_for", "ncopt.contacts.locate:contacts_for"),
+    ("sampling (even, before issue 14)", "ncopt.contacts.locate:sample_points"),
+    ("sampling (where the geometry asks)", "ncopt.contacts.sampling:adaptive_samples"),
+    ("contacts (mesh)", "ncopt.contacts.geometry:mesh_contacts"),
+    ("contacts (toolpath normals)", "ncopt.contacts.pathnormals:contacts_from_path"),
+    ("blocks", "ncopt.planning.spindle:blocks_from_contacts"),
+    ("planning", "ncopt.planning.spindle:plan"),
+    ("profile (look-ahead)", "ncopt.planning.spindle:lookahead"),
+    ("profile (forward)", "ncopt.planning.spindle:forward"),
+    ("emission (S commands)", "ncopt.planning.spindle:emit_rpm"),
+    ("styles", "ncopt.writing.edits:detect_style"),
     ("targets", "ncopt.api:_targets"),
-    ("edits", "ncopt.rewrite:plan_edits"),
-    ("splice", "ncopt.rewrite:apply_edits"),
+    ("edits", "ncopt.writing.edits:plan_edits"),
+    ("splice", "ncopt.writing.edits:apply_edits"),
     ("verification", "ncopt.api:verify"),
-    ("masked texts", "ncopt.rewrite:masked"),
+    ("masked texts", "ncopt.writing.edits:masked"),
     ("summary", "ncopt.api:_summary"),
     ("lag check", "ncopt.api:_lag_warnings"),
-    ("mesh edge lengths", "ncopt.mesh:mesh_resolution_mm"),
+    ("mesh edge lengths", "ncopt.contacts.mesh:mesh_resolution_mm"),
 )
 
 # ---------------------------------------------------------------- the case
@@ -525,7 +525,7 @@ def two_core_speed_s() -> float:
     the GIL): the other core and the memory, which the one-core loop does not see."""
     import numpy as np
 
-    from ncopt.threads import map_in_threads
+    from ncopt.runtime.threads import map_in_threads
 
     data = [np.random.default_rng(i).random(4_000_000) for i in range(2)]
     t0 = time.perf_counter()

@@ -48,11 +48,11 @@ def main() -> None:
     report("python -c pass", [seconds([sys.executable, "-c", "pass"]) for _ in range(args.runs)])
     for extra in COMMANDS:
         report(f"ncopt {' '.join(extra)}", [seconds([ncopt, *extra]) for _ in range(args.runs)])
-    probe = ("import sys; import ncopt.cli; "
+    probe = ("import sys; import ncopt.cli.app; "
              f"print(' '.join(m for m in {HEAVY!r} if m in sys.modules) or 'none')")
     loaded = subprocess.run([sys.executable, "-c", probe], check=True, capture_output=True,
                             text=True).stdout.strip()
-    print(f"heavy modules imported by 'import ncopt.cli': {loaded}")
+    print(f"heavy modules imported by 'import ncopt.cli.app': {loaded}")
 
 
 if __name__ == "__main__":

@@ -8,8 +8,8 @@ mesh-free rewrite plans, what it leaves alone, or where it refuses the program.
 Every ``*.nc *.ngc *.tap *.gcode`` under the corpus (recursively, with
 ``linuxcnc/interp-tests``) gets a row:
 
-* dialect: ``ncopt.dialect.detect``
-* blocks: lines of kind WORDS; moves: lines that move (``ncopt.inspect.inspect_text``)
+* dialect: ``ncopt.reading.dialect.detect``
+* blocks: lines of kind WORDS; moves: lines that move (``ncopt.planning.inspection.inspect_text``)
 * cutting: cutting blocks planned by ``rewrite_text`` without a mesh, as a user runs it:
   ``Machine(227, 15000)``, the tools and cutting data the program gives; where it names
   no diameter for a tool, ``Cutter(3, 2)`` for that tool (``--diameter 3 --tool N``, what
@@ -48,11 +48,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from ncopt.api import Job, rewrite_text  # noqa: E402
-from ncopt.dialect import detect  # noqa: E402
-from ncopt.errors import NcoptError, NothingToPlan, UsageError  # noqa: E402
-from ncopt.inspect import inspect_text  # noqa: E402
+from ncopt.reading.dialect import detect  # noqa: E402
+from ncopt.runtime.errors import NcoptError, NothingToPlan, UsageError  # noqa: E402
+from ncopt.planning.inspection import inspect_text  # noqa: E402
 from ncopt.model import Cutter, CuttingData, Machine  # noqa: E402
-from ncopt.stampline import STAMP_LINE as STAMP  # noqa: E402  (a line of a stamp, any version)
+from ncopt.reading.stampline import STAMP_LINE as STAMP  # noqa: E402  (a line of a stamp, any version)
 
 CORPUS = (ROOT / "../shared/corpus").resolve()
 SUFFIXES = (".nc", ".ngc", ".tap", ".gcode", ".mpf", ".h")

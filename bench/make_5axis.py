@@ -12,7 +12,7 @@ Three styles of the same toolpath:
 * ``traori``: Sinumerik, ``TRAORI`` with tool vectors ``A3= B3= C3=``;
 * ``g43.5``: Fanuc, ``G43.5`` with tool vectors ``I J K``;
 * ``xyzac-trt``: LinuxCNC with rotary angles for table A (about X) carrying
-  table C, ISO 841 (``ncopt.kinematics``): ``A = acos(ez)``, ``C = atan2(ex,
+  table C, ISO 841 (``ncopt.motion.kinematics``): ``A = acos(ez)``, ``C = atan2(ex,
   -ey)`` (unwrapped along the path); G94, or G93 (inverse time) with
   ``feed="g93"``.
 

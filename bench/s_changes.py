@@ -15,8 +15,8 @@ sys.path.insert(0, str(ROOT))
 CORPUS = (ROOT / "../shared/corpus").resolve()
 
 from ncopt.api import rewrite_file  # noqa: E402
-from ncopt.cli import make_job  # noqa: E402
-from ncopt.errors import NothingToPlan  # noqa: E402
+from ncopt.cli.app import make_job  # noqa: E402
+from ncopt.runtime.errors import NothingToPlan  # noqa: E402
 
 CASES = [(ROOT / "samples/bowl.mpf", dict(diameter=16), ROOT / "samples/bowl.stl"),
          (CORPUS / "fusion/BowlTest.nc", {}, None),

@@ -17,23 +17,25 @@ from typing import Callable
 
 import numpy as np
 
-from . import kdtree, planner, plans as _plans
-from .contacts import Method, below_top_mm
-from .controls import ANYWHERE, control_note, default_s_changes
-from .dialect import detect, resolve_decimal_point
-from .errors import VerificationError
-from .feedmode import inverse_time_words
-from .geometry import MeshIndex, load_stl
-from .interp import ffill, interpret, tcp_for
-from .memory import release_freed_memory, small_pages, working_memory
-from .model import Cutter, CuttingData, Machine, Motion, PlanOptions, Program, Toolpath
-from .parse import parse_text
-from .pathnormals import NO_CROSS, ONE_SIDED
-from .plans import OpPlan, Work, plan_program
-from .regions import Scope
-from .rewrite import F_CODE, S_CODE, Targets, apply_edits, detect_style, masked, plan_edits
-from .stamp import StampInfo, read_stamps, stamp_edit
-from .times import feed_minutes, untimed_moves
+from ncopt.contacts import kdtree
+from ncopt.planning import spindle
+from ncopt.planning import plans as _plans
+from ncopt.contacts.locate import Method, below_top_mm
+from ncopt.reading.controls import ANYWHERE, control_note, default_s_changes
+from ncopt.reading.dialect import detect, resolve_decimal_point
+from ncopt.runtime.errors import VerificationError
+from ncopt.motion.feedmode import inverse_time_words
+from ncopt.contacts.geometry import MeshIndex, load_stl
+from ncopt.motion.interp import ffill, interpret, tcp_for
+from ncopt.runtime.memory import release_freed_memory, small_pages, working_memory
+from ncopt.model import Cutter, CuttingData, Machine, Motion, PlanOptions, Program, Toolpath
+from ncopt.reading.parse import parse_text
+from ncopt.contacts.pathnormals import NO_CROSS, ONE_SIDED
+from ncopt.planning.plans import OpPlan, Work, plan_program
+from ncopt.planning.regions import Scope
+from ncopt.writing.edits import F_CODE, S_CODE, Targets, apply_edits, detect_style, masked, plan_edits
+from ncopt.reading.stamp import StampInfo, read_stamps, stamp_edit
+from ncopt.motion.times import feed_minutes, untimed_moves
 
 MM_PER_INCH = 25.4
 
@@ -66,7 +68,7 @@ class Job:
     stock_mm: float = 0.0  # --stock: allowance the program leaves on the mesh, mm
     diameter_bare: bool = False  # --diameter was a bare number (read as mm)
     shape_named: bool = False  # the user named the cutter's shape (not --diameter alone)
-    kinematics: str | None = None  # 5-axis: how rotary angles tilt the tool (ncopt.kinematics)
+    kinematics: str | None = None  # 5-axis: how rotary angles tilt the tool (ncopt.motion.kinematics)
     tcp: str | None = None  # "always": the control runs TCP for every program (else as switched)
     machine_name: str | None = None  # the machine profile the spindle comes from (the stamp)
 
@@ -116,7 +118,7 @@ class Summary:
     one_sided_points: int = 0
     no_cross_points: int = 0
     # the share of the planned cut (by length) whose contact is not known (without a mesh,
-    # or where the mesh has no part), planned at the cutter's full radius (ncopt.contacts)
+    # or where the mesh has no part), planned at the cutter's full radius (ncopt.contacts.locate)
     unknown_contact_pct: float = 0.0
     # 1-based lines of the cutting blocks where the spindle, ramping at its acceleration,
     # cannot follow the S words written (fz leaves its band): the check simulate makes
@@ -162,7 +164,7 @@ class Result:
     summary: Summary
     program: Program
     toolpath: Toolpath
-    block_index: planner.BlockIndex
+    block_index: spindle.BlockIndex
     plans: tuple[OpPlan, ...]
     targets: Targets
     operations: tuple = ()
@@ -191,7 +193,7 @@ def rewrite_file(path: str | Path, job: Job, mesh_path: str | Path | None = None
     # 1M triangles) as soon as the contacts are found.
     pool = ThreadPoolExecutor(1, thread_name_prefix="ncopt-mesh")
     try:
-        with small_pages():  # from the mesh's first array on (ncopt.memory)
+        with small_pages():  # from the mesh's first array on (ncopt.runtime.memory)
             return rewrite_text(text, job, str(path), pool.submit(_mesh_index, mesh_path),
                                 progress=progress)
     finally:  # an error in the program is reported without waiting for the mesh
@@ -227,7 +229,7 @@ def read_text(text: str, path: str, job: Job, detected: str | None = None) -> Pr
     generic grammar.  Values are then read in the job's decimal-point
     convention: a Fanuc program (named or detected) with a value whose meaning
     depends on it and no convention given is refused at that word.
-    ``detected``: the dialect :func:`ncopt.dialect.detect` finds (detected here if None).
+    ``detected``: the dialect :func:`ncopt.reading.dialect.detect` finds (detected here if None).
     """
     prog = parse_text(text, path, dialect=job.control)
     control = job.control or detected or detect(text).name
@@ -244,9 +246,9 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
     ``progress``: called with the name of each stage as it starts.
     Raises NothingToPlan (exit 5) when no operation of the program can be planned.
     """
-    # numpy's arrays on small pages throughout (ncopt.memory.small_pages).
+    # numpy's arrays on small pages throughout (ncopt.runtime.memory.small_pages).
     with small_pages():
-        # Up to the verification, freed memory stays for the next stage (ncopt.memory); the
+        # Up to the verification, freed memory stays for the next stage (ncopt.runtime.memory); the
         # verification, the peak of a rewrite, hands its temporaries back between its steps.
         # The stages are inside the block, not in a call: a caller's frame would keep the
         # mesh's future, and so the mesh, alive.
@@ -263,7 +265,7 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
                 show("reading the mesh")
                 kdtree.load()  # while the mesh's thread finishes (a short program)
             mesh_index = _loaded(mesh_index)
-            idx = planner.block_index(tp.line)
+            idx = spindle.block_index(tp.line)
             s_style = detect_style(prog, S_CODE)
             f_style = detect_style(prog, F_CODE, default_decimals=1)
             inch = tp.line_inch is not None and bool(tp.line_inch.any())
@@ -319,14 +321,14 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
         return Result(out, summary, prog, tp, idx, tuple(work.plans), targets, work.ops, work.scope)
 
 
-def _targets(prog: Program, tp: Toolpath, idx: planner.BlockIndex, work: "Work",
+def _targets(prog: Program, tp: Toolpath, idx: spindle.BlockIndex, work: "Work",
              f_style) -> Targets:
     """S and F to be in force per block: planned where an operation's plan owns the
     block, else the program's own; and the program's own at every fixed line that does
     not move (a canned cycle, a call), so that it is in force there too.
 
     A G93 block's F is 1 / minutes: the planned tip feed over its length
-    (``ncopt.feedmode``).  A rotary-only block (no length) keeps its F."""
+    (``ncopt.motion.feedmode``).  A rotary-only block (no length) keeps its F."""
     fp = idx.first_point
     ls = tp.lines
     inch = tp.line_inch[idx.line] if tp.line_inch is not None else np.zeros(fp.shape, bool)
@@ -377,7 +379,7 @@ def _inverse_time_quantum(tp, idx, f_style) -> float:
     return 10.0 ** -f_style.decimals * float(np.max(length[g93 & tp.known[idx.first_point]]))
 
 
-def _with_fixed_lines(tp: Toolpath, idx: planner.BlockIndex, scope: Scope,
+def _with_fixed_lines(tp: Toolpath, idx: spindle.BlockIndex, scope: Scope,
                       targets: Targets) -> Targets:
     """The block targets and the fixed lines that do not move (canned cycles, calls):
     consumers of the program's own S and F, which must be in force there too."""
@@ -543,9 +545,9 @@ def _masked_without(prog: Program, drop: list) -> str:
     return "".join(line + "\n" for i, line in enumerate(head) if i not in drop) + rest
 
 
-def _cut_minutes(tp: Toolpath, idx: planner.BlockIndex, targets: Targets,
+def _cut_minutes(tp: Toolpath, idx: spindle.BlockIndex, targets: Targets,
                  machine: Machine) -> tuple[np.ndarray, np.ndarray]:
-    """Minutes of every move before and after the rewrite (:mod:`ncopt.times`), for the
+    """Minutes of every move before and after the rewrite (:mod:`ncopt.motion.times`), for the
     stamp and the summary alike."""
     cap = machine.max_feed_mm_min
     return feed_minutes(tp, None, cap), feed_minutes(tp, _feed_after(tp, idx, targets), cap)
@@ -641,7 +643,7 @@ def _lag_warnings(prog, tp, idx, work: Work, targets: Targets, job: Job) -> tupl
     commanded for it, means the operation's target fz (within twice the band: a plunge
     at its own feed per tooth is off target by design, not because the spindle lags).
     Returns (warnings, 1-based lines)."""
-    from .simulate import lagging_blocks
+    from ncopt.simulate.replay import lagging_blocks
 
     n = tp.n
     counts = np.diff(np.concatenate((idx.first_point, [n])))
@@ -672,7 +674,7 @@ def _lag_warnings(prog, tp, idx, work: Work, targets: Targets, job: Job) -> tupl
             tuple(int(x) + 1 for x in lines))
 
 
-def _feed_after(tp: Toolpath, idx: planner.BlockIndex, targets: Targets) -> np.ndarray:
+def _feed_after(tp: Toolpath, idx: spindle.BlockIndex, targets: Targets) -> np.ndarray:
     """(n,) F in force per point after the rewrite, mm/min (from the targets)."""
     on_block = np.isin(targets.line, idx.line)
     f_block = targets.f_value[on_block]  # program units, the blocks' order
@@ -747,7 +749,7 @@ def _plan_warnings(prog, tp, idx, work, job) -> tuple:
     return tuple(out)
 
 
-def _below_min_rpm(prog, idx: planner.BlockIndex, work: Work, p, machine: Machine) -> list:
+def _below_min_rpm(prog, idx: spindle.BlockIndex, work: Work, p, machine: Machine) -> list:
     """Cutting blocks that need a lower S than the machine's lowest (--min-rpm): vc runs
     above its target there, and the rewrite says where and by how much."""
     c = p.blocks.cutting & p.blocks.planned
@@ -786,7 +788,7 @@ def _unknown_warning(prog, tp: Toolpath, work: Work, p) -> list:
 def nominal_cutting_data(tp: Toolpath, selected: np.ndarray, cutter: Cutter,
                          path: str) -> CuttingData:
     """vc and fz the program itself runs at its nominal diameter over the ``selected``
-    points (mask): its S and its cutting feed (see :mod:`ncopt.plans`)."""
+    points (mask): its S and its cutting feed (see :mod:`ncopt.planning.plans`)."""
     return _plans.nominal_cutting_data(tp, np.flatnonzero(selected), cutter, path)
 
 

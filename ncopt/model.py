@@ -19,7 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .errors import ValueRangeError
+from ncopt.runtime.errors import ValueRangeError
 
 
 #: ``Program.word_letter`` codes of the Sinumerik tool vector words ``A3=``, ``B3=``,
@@ -193,18 +193,18 @@ class Toolpath:
         Unit tool axis ``e`` at each point, from the tip toward the spindle, in
         the part frame (the frame of ``xyz_mm``: a tilted working plane's points
         are carried into it).  Between two points the axis is their normalised
-        blend (``ncopt.kinematics.blend``), or where both have ``tool_angles_deg``
+        blend (``ncopt.motion.kinematics.blend``), or where both have ``tool_angles_deg``
         the axis of the angles turned linearly.  None: +Z everywhere (3-axis; the
         fast path).  Rows of moves ncopt does not plan may hold +Z.
     tool_angles_deg : (n, 3) float64 or None
         A B C at each point where the machine's kinematics gave the axis (NaN
         elsewhere); None when none did.
     kinematics : str or None
-        What gave the tool axes: a name of ``ncopt.kinematics.KINEMATICS``,
+        What gave the tool axes: a name of ``ncopt.motion.kinematics.KINEMATICS``,
         ``"vector"`` (tool vectors in the program), or None (the tool never tilts).
     inverse_time : (n,) bool or None
         The move is in G93: its ``feed_mm_min`` is the tip feed its F word (1 /
-        minutes) stands for, F x the block's length (``ncopt.feedmode``).  None:
+        minutes) stands for, F x the block's length (``ncopt.motion.feedmode``).  None:
         no G93 move.
     """
 
@@ -285,7 +285,7 @@ class Bounds:
         return self.high is None or (v < self.high if self.high_open else v <= self.high)
 
     def check(self, value, name: str) -> None:
-        """Raise :class:`~ncopt.errors.ValueRangeError` naming ``name`` and the range
+        """Raise :class:`~ncopt.runtime.errors.ValueRangeError` naming ``name`` and the range
         unless ``value`` is allowed."""
         if not self.holds(value):
             raise ValueRangeError(f"{name} must be {self.describe()}, not {value!r}")
@@ -313,7 +313,7 @@ LIMITS = {
 TOOL_POINTS = ("tip", "center")
 PLANNERS = ("lookahead", "forward")
 FZ_POLICIES = ("centred", "below")
-S_CHANGES = ("anywhere", "between-passes")  # as ncopt.controls.S_CHANGES
+S_CHANGES = ("anywhere", "between-passes")  # as ncopt.reading.controls.S_CHANGES
 
 
 def check_fields(obj, names, what: str) -> None:
@@ -454,7 +454,7 @@ class PlanOptions:
     min_rpm_step : emit S only when it changes by at least this many RPM
     fz_tolerance : allowed relative fz drift inside a block while the spindle ramps
     sample_mm : longest distance between mesh samples where the tool cuts, mm (every block
-        end is sampled, and more where R_eff curves: :mod:`ncopt.sampling`)
+        end is sampled, and more where R_eff curves: :mod:`ncopt.contacts.sampling`)
     f_quantum_mm_min : resolution of the F words written (1 for ``F279``), mm/min: F is
         rounded down to it, which the fz band must absorb
     fz_policy : ``"centred"`` (default): F from the harmonic mean of the block's lowest and
@@ -466,7 +466,7 @@ class PlanOptions:
     s_changes : ``"anywhere"``: S follows the cut block by block; ``"between-passes"``: one S
         per pass, changed only on the non-cutting blocks between passes (controls that stop
         or wait at every S word, e.g. grbl); None: the control's default
-        (:func:`ncopt.controls.default_s_changes`)
+        (:func:`ncopt.reading.controls.default_s_changes`)
     """
 
     planner: str = "lookahead"

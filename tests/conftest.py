@@ -73,7 +73,7 @@ def bowl_stl(make_bowl, tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="session")
 def bowl_index(bowl_stl):
-    from ncopt.geometry import MeshIndex, load_stl
+    from ncopt.contacts.geometry import MeshIndex, load_stl
 
     return MeshIndex(load_stl(bowl_stl))
 

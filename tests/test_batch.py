@@ -22,11 +22,11 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from ncopt.cli import Exit, app
-from ncopt.errors import NcoptError
-from ncopt.inspect import inspect_text
-from ncopt.parse import parse_text
-from ncopt.rewrite import masked
+from ncopt.cli.app import Exit, app
+from ncopt.runtime.errors import NcoptError
+from ncopt.planning.inspection import inspect_text
+from ncopt.reading.parse import parse_text
+from ncopt.writing.edits import masked
 
 ROOT = Path(__file__).resolve().parents[1]
 CORPUS = Path(__file__).resolve().parents[1].parent / "shared" / "corpus"
@@ -104,7 +104,7 @@ def corpus_run(tmp_path_factory):
     report = top / "report.json"
     before = snapshot(top)
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr("ncopt.profiles.user_file", lambda: top / "user" / "ncopt.toml")
+        mp.setattr("ncopt.planning.profiles.user_file", lambda: top / "user" / "ncopt.toml")
         mp.chdir(cwd)
         t0 = time.monotonic()
         result = invoke(["batch", src, *OPTIONS, "-o", out, "--report", report, "--jobs", "2"])
@@ -231,7 +231,7 @@ SMALL = {"Wave.nc": "camotics/wave.gcode", "Smiley001.nc": "pygcode/Smiley001.nc
 
 @pytest.fixture
 def small_folder(tmp_path, monkeypatch):
-    monkeypatch.setattr("ncopt.profiles.user_file", lambda: tmp_path / "user" / "ncopt.toml")
+    monkeypatch.setattr("ncopt.planning.profiles.user_file", lambda: tmp_path / "user" / "ncopt.toml")
     cwd = tmp_path / "cwd"
     cwd.mkdir()
     monkeypatch.chdir(cwd)
@@ -379,7 +379,7 @@ def test_an_interrupted_batch_leaves_no_partial_file(tmp_path, signame, to_group
     last_line = data.rstrip(b"\r\n").rsplit(b"\n", 1)[-1]
     for i in range(COPIES):
         (src / f"bowl_{i:02d}.mpf").write_bytes(data)
-    cmd = [sys.executable, "-c", "from ncopt.cli import main; main()", "batch", str(src),
+    cmd = [sys.executable, "-c", "from ncopt.cli.app import main; main()", "batch", str(src),
            "--accel", "227", "--max-rpm", "15000", "-o", str(out), "--jobs", "2"]
     env = {**os.environ, "NO_COLOR": "1", "TERM": "dumb", "COLUMNS": "100",
            "XDG_CONFIG_HOME": str(tmp_path / "config")}

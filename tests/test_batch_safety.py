@@ -27,11 +27,11 @@ from hypothesis import strategies as st
 from rich.console import Console
 from typer.testing import CliRunner
 
-from ncopt import fileio
-from ncopt.batch import FileReport, Task, process_one
-from ncopt.batchview import BatchView
-from ncopt.cli import Exit, app, make_job
-from ncopt.fileio import TMP_SUFFIX, backups_of, clean_stale_temporaries
+from ncopt.runtime import fileio
+from ncopt.cli.batch import FileReport, Task, process_one
+from ncopt.cli.batchview import BatchView
+from ncopt.cli.app import Exit, app, make_job
+from ncopt.runtime.fileio import TMP_SUFFIX, backups_of, clean_stale_temporaries
 from programs import dome
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -56,7 +56,7 @@ def files_under(folder: Path) -> dict[str, bytes]:
 
 @pytest.fixture
 def folder(tmp_path, monkeypatch):
-    monkeypatch.setattr("ncopt.profiles.user_file", lambda: tmp_path / "user" / "ncopt.toml")
+    monkeypatch.setattr("ncopt.planning.profiles.user_file", lambda: tmp_path / "user" / "ncopt.toml")
     monkeypatch.chdir(tmp_path)
     src = tmp_path / "in"
     (src / "sub").mkdir(parents=True)
@@ -122,7 +122,7 @@ def test_a_read_only_output_folder_blames_the_output_injected(folder, tmp_path, 
     def refuse(*args, **kwargs):
         raise PermissionError(13, "Permission denied")
 
-    monkeypatch.setattr("ncopt.batch.tempfile.mkstemp", refuse)
+    monkeypatch.setattr("ncopt.cli.batch.tempfile.mkstemp", refuse)
     out = tmp_path / "out"
     result = invoke(["batch", folder, *OPTIONS, "-o", out])
     assert result.exit_code == Exit.IO
@@ -136,7 +136,7 @@ def test_a_read_only_output_folder_blames_the_output(folder, tmp_path, obeys_per
     out.chmod(0o555)
     try:
         result = subprocess.run(
-            [sys.executable, "-c", "from ncopt.cli import main; main()", "batch", str(folder),
+            [sys.executable, "-c", "from ncopt.cli.app import main; main()", "batch", str(folder),
              *OPTIONS, "-o", str(out)], capture_output=True, text=True, cwd=tmp_path,
             env={**os.environ, "XDG_CONFIG_HOME": str(tmp_path / "cfg")},
             preexec_fn=obeys_permissions)
@@ -365,7 +365,7 @@ def test_a_killed_batch_parent_leaves_no_traceback_and_no_temporary(tmp_path):
     for i in range(COPIES):
         (src / f"bowl_{i:02d}.mpf").write_bytes(data)
     log = tmp_path / "stderr.txt"
-    cmd = [sys.executable, "-c", "from ncopt.cli import main; main()", "batch", str(src),
+    cmd = [sys.executable, "-c", "from ncopt.cli.app import main; main()", "batch", str(src),
            "--accel", "227", "--max-rpm", "15000", "-o", str(out), "--jobs", "2"]
     env = {**os.environ, "NO_COLOR": "1", "XDG_CONFIG_HOME": str(tmp_path / "config")}
     with open(log, "wb") as stderr:
@@ -438,7 +438,7 @@ def test_two_in_place_batches_at_once_keep_the_originals(tmp_path):
         originals[f"p{i}.nc"] = dome(14, rev=i)
         (src / f"p{i}.nc").write_bytes(originals[f"p{i}.nc"])
     env = {**os.environ, "NO_COLOR": "1", "XDG_CONFIG_HOME": str(tmp_path / "config")}
-    runs = [subprocess.Popen([sys.executable, "-c", "from ncopt.cli import main; main()",
+    runs = [subprocess.Popen([sys.executable, "-c", "from ncopt.cli.app import main; main()",
                               "batch", str(src), "--in-place", "-q", "-j", "1", "--diameter",
                               "6", "--accel", accel, "--max-rpm", "15000"],
                              cwd=tmp_path, env=env, stdout=subprocess.PIPE,

@@ -12,10 +12,10 @@ from rich.console import Console
 from typer.testing import CliRunner
 
 from ncopt.api import Job, rewrite_text
-from ncopt.cli import Exit, app, print_summary
+from ncopt.cli.app import Exit, app, print_summary
 from ncopt.model import Cutter, CuttingData, Machine
-from ncopt.parse import parse_text
-from ncopt.rewrite import masked
+from ncopt.reading.parse import parse_text
+from ncopt.writing.edits import masked
 
 ROOT = Path(__file__).resolve().parents[1]
 BOWL_MPF = ROOT / "samples" / "bowl.mpf"
@@ -105,7 +105,7 @@ def test_stdin_to_stdout(small_program, bowl_stl):
     assert masked(parse_text(plain)) == masked(parse_text(text))
     assert plain != text  # S and F were rewritten
     # the same as the library gives for the same job
-    from ncopt.geometry import MeshIndex, load_stl
+    from ncopt.contacts.geometry import MeshIndex, load_stl
     job = Job(cutter=Cutter(16.0, 2), machine=Machine(227.0, 15000.0),
               cutting=CuttingData(70.0, 0.1))
     assert rewrite_text(text, job, "-", MeshIndex(load_stl(bowl_stl))).text == out

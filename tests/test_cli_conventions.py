@@ -13,7 +13,7 @@ import pytest
 from typer.testing import CliRunner
 
 import ncopt
-from ncopt.cli import DIFFERENT, Exit, app
+from ncopt.cli.app import DIFFERENT, Exit, app
 from programs import dome
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -31,7 +31,7 @@ def invoke(args, stdin: bytes | None = None, env: dict | None = None):
 @pytest.fixture
 def pair(tmp_path, monkeypatch):
     """A program and its rewrite, in an empty working folder with no user profiles."""
-    monkeypatch.setattr("ncopt.profiles.user_file", lambda: tmp_path / "user" / "ncopt.toml")
+    monkeypatch.setattr("ncopt.planning.profiles.user_file", lambda: tmp_path / "user" / "ncopt.toml")
     monkeypatch.chdir(tmp_path)
     prog, opt = tmp_path / "p.nc", tmp_path / "opt.nc"
     prog.write_bytes(dome())
@@ -59,9 +59,9 @@ def test_version_both_ways():
 def test_the_command_line_starts_without_the_heavy_modules():
     """ncopt --help and ncopt version import neither numpy nor lark nor rich nor the api
     (bench/bench_startup.py measures the time)."""
-    probe = ("import sys\nsys.argv = ['ncopt'] + sys.argv[1:]\nfrom ncopt.cli import main\n"
+    probe = ("import sys\nsys.argv = ['ncopt'] + sys.argv[1:]\nfrom ncopt.cli.app import main\n"
              "try:\n    main()\nexcept SystemExit:\n    pass\n"
-             "heavy = ('numpy', 'lark', 'scipy', 'rich', 'ncopt.api', 'ncopt.parse')\n"
+             "heavy = ('numpy', 'lark', 'scipy', 'rich', 'ncopt.api', 'ncopt.reading.parse')\n"
              "print(sorted(m for m in heavy if m in sys.modules), file=sys.stderr)\n")
     for args in (["--help"], ["version"], ["--version"]):
         done = subprocess.run([sys.executable, "-c", probe, *args], capture_output=True,
@@ -161,13 +161,13 @@ def test_output_into_a_folder_and_a_path_ending_in_slash(pair, tmp_path):
 def test_the_distribution_name_is_ours_and_the_hints_install_this_project(monkeypatch, pair):
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     assert project["name"] == ncopt.DISTRIBUTION != "ncopt"  # 'ncopt' is another project
-    assert project["scripts"] == {"ncopt": "ncopt.entry:main"}  # diff answers before typer loads
+    assert project["scripts"] == {"ncopt": "ncopt.cli.entry:main"}  # diff answers before typer loads
     readme = (ROOT / "README.md").read_text()
     hints = re.findall(r"pip install ([^`\n]+)", readme)
     assert hints and all(re.match(r"""(?:-e )?["']?\.(?:\[\w+\])?["']?(?: |$)|ncopt-cnc|matplotlib""",
                                   h) for h in hints), hints
     prog, _ = pair
-    monkeypatch.setattr("ncopt.cli._has_matplotlib", lambda: False)
+    monkeypatch.setattr("ncopt.cli.app._has_matplotlib", lambda: False)
     result = invoke(["simulate", prog, *SPINDLE, "--plot", "p.png"])
     assert result.exit_code == Exit.USAGE
     assert result.stderr == ("plots need matplotlib: python -m pip install matplotlib (or, in "
@@ -177,8 +177,8 @@ def test_the_distribution_name_is_ours_and_the_hints_install_this_project(monkey
 def test_diff_pairs_a_stamped_rewrite_line_by_line(pair, monkeypatch):
     """The stamp lines of any ncopt version are shown apart and the rest paired line by
     line (difflib on a 1M-line program would take minutes)."""
-    from ncopt import diffview
-    from ncopt.diffview import _rows
+    from ncopt.report import diffview
+    from ncopt.report.diffview import _rows
 
     def no_difflib(*args):
         raise AssertionError("the rewrite went through difflib")

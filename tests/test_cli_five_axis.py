@@ -7,7 +7,7 @@ from pathlib import Path
 
 from typer.testing import CliRunner
 
-from ncopt.cli import Exit, app
+from ncopt.cli.app import Exit, app
 
 SPINDLE = ["--diameter", "10", "--teeth", "2", "--accel", "227", "--max-rpm", "18000",
            "--vc", "150", "--fz", "0.08"]

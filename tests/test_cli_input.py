@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from ncopt.cli import Exit, app
+from ncopt.cli.app import Exit, app
 
 SPINDLE = ["--diameter", "2", "--teeth", "2", "--accel", "227", "--max-rpm", "15000"]
 KLARTEXT = ("0 BEGIN PGM W5269NS01007C26 MM\n1 ; --- TOOLLIST BEGIN ---\n"

@@ -12,11 +12,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ncopt.errors import NcoptError, NcParseError
-from ncopt.interp import interpret
+from ncopt.runtime.errors import NcoptError, NcParseError
+from ncopt.motion.interp import interpret
 from ncopt.model import LineKind, Toolpath
-from ncopt.parse import parse_text
-from ncopt.rewrite import F_CODE, S_CODE, apply_edits, masked
+from ncopt.reading.parse import parse_text
+from ncopt.writing.edits import F_CODE, S_CODE, apply_edits, masked
 
 ROOT = Path(__file__).resolve().parents[1]
 CORPUS = (ROOT / "../shared/corpus").resolve()

@@ -17,9 +17,9 @@ from pathlib import Path
 import pytest
 
 from ncopt.api import Job, rewrite_text
-from ncopt.errors import NcoptError, NothingToPlan
+from ncopt.runtime.errors import NcoptError, NothingToPlan
 from ncopt.model import Cutter, Machine
-from ncopt.simulate import simulate_program
+from ncopt.simulate.replay import simulate_program
 
 ROOT = Path(__file__).resolve().parents[1]
 CORPUS = (ROOT / "../shared/corpus").resolve()

@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from ncopt.cli import Exit, app
+from ncopt.cli.app import Exit, app
 from programs import dome
 
 SPINDLE = ["--diameter", "6", "--accel", "227", "--max-rpm", "15000"]
@@ -51,7 +51,7 @@ def big(tmp_path) -> Path:
 def ncopt(args, tmp_path, **kwargs) -> subprocess.Popen:
     env = {**os.environ, "NO_COLOR": "1", "TERM": "dumb", "COLUMNS": "100",
            "XDG_CONFIG_HOME": str(tmp_path / "config"), **kwargs.pop("env", {})}
-    return subprocess.Popen([sys.executable, "-c", "from ncopt.cli import main; main()",
+    return subprocess.Popen([sys.executable, "-c", "from ncopt.cli.app import main; main()",
                              *[str(a) for a in args]], env=env, cwd=tmp_path, **kwargs)
 
 
@@ -186,7 +186,7 @@ def test_output_into_a_read_only_folder_injected(prog, tmp_path, monkeypatch):
     def refuse(*args, **kwargs):
         raise PermissionError(errno.EACCES, "Permission denied", str(tmp_path))
 
-    monkeypatch.setattr("ncopt.fileio.tempfile.mkstemp", refuse)
+    monkeypatch.setattr("ncopt.runtime.fileio.tempfile.mkstemp", refuse)
     out = tmp_path / "o.nc"
     result = invoke(["rewrite", prog, *SPINDLE, "-o", out])
     assert result.exit_code == Exit.IO
@@ -212,7 +212,7 @@ def test_an_unreadable_home_is_one_line_and_exit_7(prog, tmp_path, obeys_permiss
 
 def test_an_unreadable_config_folder_injected(tmp_path, monkeypatch):
     user = tmp_path / "home" / ".config" / "ncopt" / "ncopt.toml"
-    monkeypatch.setattr("ncopt.profiles.user_file", lambda: user)
+    monkeypatch.setattr("ncopt.planning.profiles.user_file", lambda: user)
     real = Path.is_file
 
     def is_file(self):

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from ncopt.api import Job, rewrite_text
-from ncopt.geometry import MeshIndex, mesh_from_triangles
-from ncopt.kinematics import KINEMATICS, euler_zxz
+from ncopt.contacts.geometry import MeshIndex, mesh_from_triangles
+from ncopt.motion.kinematics import KINEMATICS, euler_zxz
 from ncopt.model import Cutter, CuttingData, Machine
-from ncopt.pathnormals import CONFIDENT
+from ncopt.contacts.pathnormals import CONFIDENT
 
 R = 5.0
 JOB = Job(machine=Machine(227, 18000), cutter=Cutter(10, 2), cutting=CuttingData(150, 0.08))
@@ -68,10 +68,10 @@ def plane_program(lead_deg, tilt_deg, style="g43.5", passes=6, length=20.0):
 
 def contacts(text: str, mesh, kinematics=None):
     """The toolpath of ``text`` and the contacts ncopt plans its feed moves with."""
-    from ncopt.contacts import contacts_for
-    from ncopt.interp import interpret
-    from ncopt.parse import parse_text
-    from ncopt.plans import plannable_points
+    from ncopt.contacts.locate import contacts_for
+    from ncopt.motion.interp import interpret
+    from ncopt.reading.parse import parse_text
+    from ncopt.planning.plans import plannable_points
 
     tp = interpret(parse_text(text, "p.nc"), kinematics=kinematics)
     return tp, contacts_for(tp, JOB.cutter, plannable_points(tp, True), mesh, 1.0, 0.05)
@@ -98,7 +98,7 @@ def test_a_tilt_sweeping_along_a_pass():
     """Lead 5 -> 25 deg along each pass in xyzac-trt angles: R_eff at every mesh sample is
     the closed form for the axis the control turns the tool through (the angles
     interpolated linearly between the block ends)."""
-    from ncopt.kinematics import KINEMATICS
+    from ncopt.motion.kinematics import KINEMATICS
 
     text, _ = plane_program(lambda x: 5.0 + x, 8.0, style="xyzac-trt", passes=3)
     tp, sampled = contacts(text, plane_index(), "xyzac-trt")
@@ -111,7 +111,7 @@ def test_a_tilt_sweeping_along_a_pass():
     lead = np.degrees(np.arcsin(np.abs(sampled.axis[ok, 0])))
     assert lead.min() < 5.5 and lead.max() > 24.5
     # each sample's axis is that of the angles turned linearly from the block's start
-    from ncopt.contacts import AXIS_SAMPLE_MM, sample_fractions
+    from ncopt.contacts.locate import AXIS_SAMPLE_MM, sample_fractions
     point, frac = sample_fractions(tp, AXIS_SAMPLE_MM)  # as contacts_for with a mesh
     a0, a1 = tp.tool_angles_deg[np.maximum(point - 1, 0)], tp.tool_angles_deg[point]
     both = ok & np.isfinite(a0).all(1) & np.isfinite(a1).all(1)

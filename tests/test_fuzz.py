@@ -17,11 +17,11 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from ncopt.api import Job, rewrite_text
-from ncopt.cli import Exit, app
-from ncopt.errors import NcoptError, NcParseError, PlanningError, UsageError
-from ncopt.interp import interpret
+from ncopt.cli.app import Exit, app
+from ncopt.runtime.errors import NcoptError, NcParseError, PlanningError, UsageError
+from ncopt.motion.interp import interpret
 from ncopt.model import Cutter, CuttingData, Machine
-from ncopt.parse import parse_text
+from ncopt.reading.parse import parse_text
 
 ROOT = Path(__file__).resolve().parents[1]
 CORPUS = (ROOT / "../shared/corpus").resolve()

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from ncopt.cli import Exit, app
-from ncopt.interp import interpret
+from ncopt.cli.app import Exit, app
+from ncopt.motion.interp import interpret
 from ncopt.model import LineKind
-from ncopt.parse import parse_text
-from ncopt.rewrite import masked
+from ncopt.reading.parse import parse_text
+from ncopt.writing.edits import masked
 
 CASES = Path(__file__).resolve().parent / "golden" / "cases"
 CASE_DIRS = sorted(p for p in CASES.iterdir() if (p / "args").is_file()) if CASES.is_dir() else []

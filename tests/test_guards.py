@@ -18,10 +18,10 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from ncopt import fileio
-from ncopt.cli import Exit, app
-from ncopt.errors import FileError, UsageError
-from ncopt.fileio import guard_outputs, read_input, replace_in_place
+from ncopt.runtime import fileio
+from ncopt.cli.app import Exit, app
+from ncopt.runtime.errors import FileError, UsageError
+from ncopt.runtime.fileio import guard_outputs, read_input, replace_in_place
 from programs import dome
 
 SPINDLE = ["--diameter", "6", "--accel", "227", "--max-rpm", "15000"]
@@ -37,7 +37,7 @@ def invoke(args, **kwargs):
 def run(args, cwd, **kwargs) -> subprocess.CompletedProcess:
     env = {**os.environ, "NO_COLOR": "1", "TERM": "dumb", "COLUMNS": "100",
            "XDG_CONFIG_HOME": str(Path(cwd) / "config")}
-    return subprocess.run([sys.executable, "-c", "from ncopt.cli import main; main()",
+    return subprocess.run([sys.executable, "-c", "from ncopt.cli.app import main; main()",
                            *[str(a) for a in args]], env=env, cwd=cwd, capture_output=True,
                           timeout=120, **kwargs)
 
@@ -295,7 +295,7 @@ def test_a_fifo_program_with_no_writer_is_exit_7_from_the_command(tmp_path):
     if not hasattr(os, "mkfifo"):
         pytest.skip("no FIFOs here")
     os.mkfifo(tmp_path / "pipe.nc")
-    env_code = "import ncopt.fileio as f; f.FIFO_WAIT_S = 0.3; from ncopt.cli import main; main()"
+    env_code = "import ncopt.runtime.fileio as f; f.FIFO_WAIT_S = 0.3; from ncopt.cli.app import main; main()"
     result = subprocess.run([sys.executable, "-c", env_code, "rewrite", "pipe.nc", *SPINDLE],
                             cwd=tmp_path, capture_output=True, timeout=60,
                             env={**os.environ, "NO_COLOR": "1"})

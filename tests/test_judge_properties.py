@@ -26,11 +26,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from ncopt.api import Job, rewrite_text
-from ncopt.parse import parse_text
-from ncopt.interp import interpret
-from ncopt.errors import NothingToPlan
+from ncopt.reading.parse import parse_text
+from ncopt.motion.interp import interpret
+from ncopt.runtime.errors import NothingToPlan
 from ncopt.model import Cutter, Machine, Motion
-from ncopt.plans import PLAUSIBLE_F_MM_MIN, PLAUSIBLE_FZ_MM, PLAUSIBLE_S_RPM
+from ncopt.planning.plans import PLAUSIBLE_F_MM_MIN, PLAUSIBLE_FZ_MM, PLAUSIBLE_S_RPM
 
 from judge import RS274, canon
 

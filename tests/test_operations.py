@@ -16,13 +16,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ncopt.api import Job, rewrite_text
-from ncopt.errors import MeshError, NothingToPlan, PlanningError
-from ncopt.geometry import MeshIndex, mesh_from_triangles
-from ncopt.interp import interpret
+from ncopt.runtime.errors import MeshError, NothingToPlan, PlanningError
+from ncopt.contacts.geometry import MeshIndex, mesh_from_triangles
+from ncopt.motion.interp import interpret
 from ncopt.model import Cutter, CuttingData, Machine, Motion
-from ncopt.operations import CANNED, CLEARING, FINISH_3D, FINISH_ZLEVEL, ISOLATED, ROUGH_LEVELS, \
+from ncopt.planning.operations import CANNED, CLEARING, FINISH_3D, FINISH_ZLEVEL, ISOLATED, ROUGH_LEVELS, \
     TWO_D, find
-from ncopt.parse import parse_text
+from ncopt.reading.parse import parse_text
 
 MACHINE = Machine(accel_rad_s2=227.0, max_rpm=15000.0)
 JOB = Job(machine=MACHINE)
@@ -225,7 +225,7 @@ def test_a_mesh_of_another_part_is_refused():
 
 
 def test_an_inch_output_rewritten_again_is_the_same_and_simulates_right():
-    from ncopt.simulate import simulate_program
+    from ncopt.simulate.replay import simulate_program
     mm = program(finish("PARALLEL1", 1), tools=[BALL1])
     inch = mm.replace("G21", "G20")
     inch = "\n".join(_to_inch(line) for line in inch.split("\n"))
@@ -393,12 +393,12 @@ def test_only_the_finish_changes_and_no_fz_rises(others, position, ramp_f):
 # ------------------------------------------------------------ one truth (#13) ----
 def test_the_same_program_has_the_same_time_in_every_command(tmp_path):
     """inspect, rewrite, simulate and batch count the same moves the same way: every feed
-    move whose ends are known, at its F (ncopt.times)."""
+    move whose ends are known, at its F (ncopt.motion.times)."""
     import json
 
     from typer.testing import CliRunner
 
-    from ncopt.cli import app
+    from ncopt.cli.app import app
     text = program(finish("PARALLEL1", 1), adaptive("ADAPTIVE2", 1), drill(2),
                    tools=[BALL1, DRILL2])
     src = tmp_path / "in" / "p.nc"
@@ -424,7 +424,7 @@ def test_simulate_judges_a_rewrite_with_the_teeth_and_band_of_its_stamp():
     """A rewrite for a 3-tooth cutter with a 1 % band: simulate, given neither, reads both
     from the stamp (it used to judge it at 2 teeth: '0.00 % in band, +52.85 %')."""
     from ncopt.model import PlanOptions
-    from ncopt.simulate import simulate_program
+    from ncopt.simulate.replay import simulate_program
     text = program(finish("PARALLEL1", 1), tools=[BALL1])
     job = replace(JOB, cutter=Cutter(6.0, 3), shape_named=True,
                   options=PlanOptions(fz_tolerance=0.01))
@@ -440,7 +440,7 @@ def test_json_summary_and_batch_report_list_every_operation(tmp_path):
 
     from typer.testing import CliRunner
 
-    from ncopt.cli import app
+    from ncopt.cli.app import app
     text = program(finish("PARALLEL1", 1), drill(2), tools=[BALL1, DRILL2])
     src = tmp_path / "in" / "p.nc"
     src.parent.mkdir()
@@ -486,7 +486,7 @@ def test_constant_z_levels_close_together_are_a_wall_or_a_z_level_finish(radius,
 def test_operation_comments_of_the_linuxcnc_5axis_demos_name_the_operation():
     """``( OPERATION=  ROUGH7  Z LEVEL  SRF_MILL1  )`` (the post of the LinuxCNC boat demos)
     names the operation; it used to be dropped for its '=' and shown as ``T1``."""
-    from ncopt.operations import operation_comments
+    from ncopt.planning.operations import operation_comments
     text = ("%\n(BOAT)\n\n( OPERATION=  ROUGH7  Z LEVEL  SRF_MILL1  )\n"
             "( TOOL: T1 = 10.0 dia. ENDMILLM1000:REG )\nG00 G17 G40 G90 G94\nT1 M6\n"
             "S630 M03\nG01 Z-6.625 F300.0\nX-49.375 F600.0\n\n( FINISH1 FLOWLINE SRF_MILL1 )\n"
@@ -500,7 +500,7 @@ def test_nothing_to_plan_names_operations_with_the_same_reason_once():
     and "and 6 more" (it listed the reason six times, then "and 3 more")."""
     from types import SimpleNamespace
 
-    from ncopt.plans import _nothing_why
+    from ncopt.planning.plans import _nothing_why
     flat = "a flat end mill (2mm); ncopt plans ball and bull-nose cutters only"
     ops = [SimpleNamespace(kind=TWO_D, name=f"Hole {k}", lines=f"lines {k}-{k}", reason=flat)
            for k in range(1, 10)]

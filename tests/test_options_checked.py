@@ -18,11 +18,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
-from ncopt.cli import Exit, app
-from ncopt.errors import NcoptError, UsageError, ValueRangeError
-from ncopt.interp import interpret
+from ncopt.cli.app import Exit, app
+from ncopt.runtime.errors import NcoptError, UsageError, ValueRangeError
+from ncopt.motion.interp import interpret
 from ncopt.model import LIMITS, Cutter, CuttingData, Machine, PlanOptions
-from ncopt.parse import parse_text
+from ncopt.reading.parse import parse_text
 from programs import dome
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -16,11 +16,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from ncopt.api import Job, rewrite_text
-from ncopt.errors import NothingToPlan
-from ncopt.interp import interpret
+from ncopt.runtime.errors import NothingToPlan
+from ncopt.motion.interp import interpret
 from ncopt.model import Machine
-from ncopt.parse import parse_text
-from ncopt.simulate import simulate_program
+from ncopt.reading.parse import parse_text
+from ncopt.simulate.replay import simulate_program
 
 MACHINE = Machine(accel_rad_s2=227.0, max_rpm=15000.0)
 JOB = Job(machine=MACHINE)

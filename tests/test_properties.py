@@ -12,13 +12,13 @@ from hypothesis import Phase, assume, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.lark import from_lark
 
-from ncopt import planner
+from ncopt.planning import spindle
 from ncopt.api import Job, rewrite_text
-from ncopt.errors import NcParseError
-from ncopt.interp import interpret
+from ncopt.runtime.errors import NcParseError
+from ncopt.motion.interp import interpret
 from ncopt.model import Cutter, CuttingData, Edit, LineKind, Machine, PlanOptions
-from ncopt.parse import parse_text, parser
-from ncopt.rewrite import (F_CODE, S_CODE, Targets, apply_edits, detect_style, masked,
+from ncopt.reading.parse import parse_text, parser
+from ncopt.writing.edits import (F_CODE, S_CODE, Targets, apply_edits, detect_style, masked,
                            plan_edits)
 
 LATIN1_LINE = st.characters(codec="latin-1", exclude_characters="\r\n")
@@ -122,7 +122,7 @@ def test_edits_on_s_and_f_values_change_only_those_spans(case):
 
 
 def test_overlapping_edits_are_refused():
-    from ncopt.errors import VerificationError
+    from ncopt.runtime.errors import VerificationError
     with pytest.raises(VerificationError):
         apply_edits("G1 X1 F100\n", [Edit(7, 10, "200"), Edit(8, 9, "5")])
 
@@ -303,7 +303,7 @@ def planning_cases(draw):
     planned = arr(st.floats(0.0, 1.0).map(lambda u: u < 0.75))
     cutting = planned & arr(st.booleans())
     req = arr(st.one_of(st.floats(300.0, 40000.0), st.just(math.inf)))
-    blocks = planner.Blocks(
+    blocks = spindle.Blocks(
         length_mm=arr(st.floats(0.01, 5.0)), req_rpm=req, cutting=cutting, planned=planned,
         time_s=arr(st.floats(0.001, 2.0)),
         fixed_rpm=arr(st.integers(int(max(300.0, machine.min_rpm)) + 1,
@@ -315,12 +315,12 @@ def planning_cases(draw):
 @given(planning_cases())
 def test_lookahead_keeps_the_spindle_limits(case):
     blocks, machine, cut, teeth, opts = case
-    prof = planner.lookahead(blocks, machine, cut, teeth, opts)
+    prof = spindle.lookahead(blocks, machine, cut, teeth, opts)
     s = prof.s_rpm
-    k = planner.k_rpm2_per_mm(machine, cut, teeth)
+    k = spindle.k_rpm2_per_mm(machine, cut, teeth)
     assert prof.k_rpm2_per_mm == pytest.approx(k)
-    s_lo, s_hi = planner.speed_limits(machine, cut, teeth)
-    cap = planner.caps(blocks, s_lo, s_hi, lookahead=True)
+    s_lo, s_hi = spindle.speed_limits(machine, cut, teeth)
+    cap = spindle.caps(blocks, s_lo, s_hi, lookahead=True)
     eps = 1e-9
     assert np.all(np.isfinite(s))
     # round-off is compared in S^2, where the passes work, against the largest speed
@@ -358,13 +358,13 @@ def emitted(case, policy):
     blocks, machine, cut, teeth, opts = case
     opts = PlanOptions(fz_tolerance=opts.fz_tolerance, min_rpm_step=opts.min_rpm_step,
                        fz_policy=policy)
-    prof = planner.lookahead(blocks, machine, cut, teeth, opts)
-    incs = planner.increments(blocks, machine, prof.k_rpm2_per_mm)
-    s_lo, s_hi = planner.speed_limits(machine, cut, teeth)
+    prof = spindle.lookahead(blocks, machine, cut, teeth, opts)
+    incs = spindle.increments(blocks, machine, prof.k_rpm2_per_mm)
+    s_lo, s_hi = spindle.speed_limits(machine, cut, teeth)
     cut_b = blocks.cutting & blocks.planned
     lowest = float(prof.cap_rpm[cut_b].min()) if cut_b.any() else 1.0
-    ratio = planner.max_speed_ratio(opts, cut, teeth, lowest)
-    cmd, low, high = planner.emit_rpm(prof, blocks, incs, opts, s_lo, ratio, s_hi=s_hi)
+    ratio = spindle.max_speed_ratio(opts, cut, teeth, lowest)
+    cmd, low, high = spindle.emit_rpm(prof, blocks, incs, opts, s_lo, ratio, s_hi=s_hi)
     return blocks, machine, cut, teeth, opts, prof, cmd, low, high
 
 
@@ -388,7 +388,7 @@ def test_emitted_commands_step_and_keep_fz_in_band(case, policy):
     cut_b = blocks.cutting & blocks.planned
     assert np.all(cmd[free] == np.floor(cmd[free]))
     assert np.all(cmd[cut_b] <= prof.s_rpm[cut_b] + 1.0 + 1e-9)  # vc never above target
-    s_lo, s_hi = planner.speed_limits(machine, cut, teeth)
+    s_lo, s_hi = spindle.speed_limits(machine, cut, teeth)
     assert np.all(cmd[free] >= math.ceil(s_lo - 1e-9))  # the machine's lowest speed
     assert np.all(cmd[free] <= s_hi + 1e-9)
     assert np.all(low <= high)
@@ -400,7 +400,7 @@ def test_emitted_commands_step_and_keep_fz_in_band(case, policy):
             assert abs(cmd[b] - cmd[b - 1]) >= opts.min_rpm_step or onto_floor, \
                 (b, cmd[b - 1], cmd[b])
     # fz stays in its band at the slowest and the fastest real speed of each cutting block
-    f = planner.feeds(low, high, blocks, cut, teeth, machine.max_feed_mm_min, policy)
+    f = spindle.feeds(low, high, blocks, cut, teeth, machine.max_feed_mm_min, policy)
     tol = opts.fz_tolerance
     top = cut.fz_mm * (1.0 if policy == "below" else 1.0 + tol)
     assert np.all(f[cut_b] / (teeth * low[cut_b]) <= top * (1 + 1e-9))

@@ -20,14 +20,14 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from ncopt.api import Job, rewrite_text
-from ncopt.cli import Exit, app
-from ncopt.dialect import FANUC, LINUXCNC, SINUMERIK, detect
-from ncopt.errors import NcoptError, NcParseError
-from ncopt.inspect import inspect_text
-from ncopt.interp import interpret
+from ncopt.cli.app import Exit, app
+from ncopt.reading.dialect import FANUC, LINUXCNC, SINUMERIK, detect
+from ncopt.runtime.errors import NcoptError, NcParseError
+from ncopt.planning.inspection import inspect_text
+from ncopt.motion.interp import interpret
 from ncopt.model import Cutter, LineKind, Machine, Motion
-from ncopt.parse import parse_text
-from ncopt.rewrite import masked
+from ncopt.reading.parse import parse_text
+from ncopt.writing.edits import masked
 
 from judge import RS274, canon
 from programs import dome
@@ -356,7 +356,7 @@ def test_a_cr_arc_marks_sinumerik_and_a_fusion_tool_comment_does_not():
     """``N000009 G03 X-22.313 Y19.749 CR=4. F250.`` (more2/sinumerik-cr-arcs_test.mpf, no
     other Siemens mark) is Siemens' own syntax; Fusion writes ``CR=`` in every tool comment
     (``(T1 D=6. CR=3. - ZMIN=-69.203 - fresa con punta de bola)``), for every control."""
-    from ncopt.dialect import detect
+    from ncopt.reading.dialect import detect
 
     assert detect("N000001 G40 G17 G90\nN000009 G03 X-22.313 Y19.749 CR=4. F250.\n"
                   ).name == "sinumerik"
@@ -372,12 +372,12 @@ def test_no_dialect_mark_reaches_over_blank_lines_from_a_line_start():
     blank line and tried again: quadratic in a run of blank lines (20,000 blank lines in
     the sample: 9.9 s of the rewrite in the dialect's detection; 100,000 took minutes).  A
     mark is a construct of one line: it starts with blanks of that line only."""
-    from ncopt.dialect import _MARKS
+    from ncopt.reading.dialect import _MARKS
 
     for marks in _MARKS.values():
         for mark in marks:
             assert not re.match(r"\^(?:\(\?:[^)]*\)\?)?\\s", mark.pattern), mark
-    from ncopt.dialect import detect
+    from ncopt.reading.dialect import detect
 
     text = "\n" * 3 + "DEF REAL X\nG1 X1 F100\n"
     assert detect(text).name == "sinumerik"

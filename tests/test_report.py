@@ -16,9 +16,9 @@ from typer.testing import CliRunner
 pytest.importorskip("plotly")
 pytest.importorskip("matplotlib")
 
-from ncopt import report  # noqa: E402
+from ncopt.report import html# noqa: E402
 from ncopt.api import Job, rewrite_text  # noqa: E402
-from ncopt.cli import Exit, app  # noqa: E402
+from ncopt.cli.app import Exit, app  # noqa: E402
 from ncopt.model import Cutter, CuttingData, Machine  # noqa: E402
 
 SPINDLE = ["--diameter", "16", "--accel", "227", "--max-rpm", "15000"]
@@ -52,9 +52,9 @@ def page(make_bowl, bowl_index, tmp_path_factory):
     job = Job(cutter=Cutter(16.0, 2), machine=Machine(227.0, 15000.0),
               cutting=CuttingData(70.0, 0.1))
     result = rewrite_text(text, job, "in.nc", bowl_index)
-    data = report.from_rewrite(result, text, "in.nc", "out.nc", job, bowl_index, sample_mm=0.25)
+    data = html.from_rewrite(result, text, "in.nc", "out.nc", job, bowl_index, sample_mm=0.25)
     path = tmp_path_factory.mktemp("report") / "r.html"
-    report.write(path, report.render(data))
+    html.write(path, html.render(data))
     return path, data, result
 
 
@@ -90,7 +90,7 @@ def test_a_program_line_cannot_inject_markup(make_bowl, bowl_index, tmp_path):
     job = Job(cutter=Cutter(16.0, 2), machine=Machine(227.0, 15000.0),
               cutting=CuttingData(70.0, 0.1))
     result = rewrite_text(text, job, "x.nc", bowl_index)
-    html = report.render(report.from_rewrite(result, text, "x.nc", "<b>y</b>.nc", job,
+    html = html.render(html.from_rewrite(result, text, "x.nc", "<b>y</b>.nc", job,
                                              bowl_index, sample_mm=0.5))
     assert "<script>alert(1)</script>" not in html and "<b>y</b>" not in html
     assert "&lt;script&gt;alert(1)&lt;/script&gt;" in html and "&lt;b&gt;y&lt;/b&gt;" in html
@@ -235,7 +235,7 @@ def test_a_machine_profile_sets_where_s_changes(make_bowl, bowl_stl, tmp_path):
 
 def test_a_constant_colour_gets_a_plain_scale():
     """One S for a whole pass: the colour bar spans 2 % around it, not +-0.4 RPM."""
-    lo, hi = report._colour_range(np.array([1688.0, np.nan, 1688.0]))
+    lo, hi = html._colour_range(np.array([1688.0, np.nan, 1688.0]))
     assert hi - lo == pytest.approx(0.02 * 1688.0) and lo < 1688.0 < hi
-    assert report._colour_range(np.array([1000.0, 15000.0])) == (1000.0, 15000.0)
-    assert report._colour_range(np.array([np.nan])) == (0.0, 1.0)
+    assert html._colour_range(np.array([1000.0, 15000.0])) == (1000.0, 15000.0)
+    assert html._colour_range(np.array([np.nan])) == (0.0, 1.0)

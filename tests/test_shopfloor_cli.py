@@ -23,9 +23,9 @@ from rich.console import Console
 from typer.testing import CliRunner
 
 from ncopt.api import OpRow, Summary
-from ncopt.cli import WOULD_CHANGE, Exit, app, print_summary
-from ncopt.inspect import Inspection, render_inspection
-from ncopt.profiles import EXAMPLES, MACHINE_KEYS, MachineProfile, load
+from ncopt.cli.app import WOULD_CHANGE, Exit, app, print_summary
+from ncopt.planning.inspection import Inspection, render_inspection
+from ncopt.planning.profiles import EXAMPLES, MACHINE_KEYS, MachineProfile, load
 from programs import dome
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -56,7 +56,7 @@ def ncopt(args, cwd: Path, **kwargs) -> subprocess.Popen:
 
 @pytest.fixture(autouse=True)
 def empty_folder(tmp_path, monkeypatch) -> Path:
-    monkeypatch.setattr("ncopt.profiles.user_file", lambda: tmp_path / "user" / "ncopt.toml")
+    monkeypatch.setattr("ncopt.planning.profiles.user_file", lambda: tmp_path / "user" / "ncopt.toml")
     monkeypatch.delenv("NCOPT_MACHINE", raising=False)
     work = tmp_path / "work"
     work.mkdir()
@@ -477,7 +477,7 @@ def test_shell_completion_is_available():
 def test_command_help_loads_no_heavy_module():
     """`ncopt rewrite -h` (and every COMMAND -h) imports neither numpy, rich nor pydantic
     (which typer loads to convert option values: 90 ms of the 0.3 s budget)."""
-    probe = ("import sys\nsys.argv = ['ncopt'] + sys.argv[1:]\nfrom ncopt.cli import main\n"
+    probe = ("import sys\nsys.argv = ['ncopt'] + sys.argv[1:]\nfrom ncopt.cli.app import main\n"
              "try:\n    main()\nexcept SystemExit:\n    pass\n"
              "heavy = ('numpy', 'lark', 'rich', 'pydantic', 'ncopt.api')\n"
              "print(sorted(m for m in heavy if m in sys.modules), file=sys.stderr)\n")
@@ -489,7 +489,7 @@ def test_command_help_loads_no_heavy_module():
 
 def test_batch_names_keep_their_first_folder_and_file_name():
     """'…ng/finishing/part_07.nc' lost which mould the file is of; the middle goes instead."""
-    from ncopt.batchview import _shorten
+    from ncopt.cli.batchview import _shorten
 
     assert _shorten("mould_A/roughing/finishing/part_07.nc", 30) == "mould_A/roughing/f…/part_07.nc"
     assert _shorten("mould_B/2025/november/week3/finish.nc", 24) == "mould_B/2025/…/finish.nc"
@@ -522,9 +522,9 @@ def test_diff_into_a_pipe_answers_before_the_command_line_and_says_the_same(tmp_
     assert same.returncode == 0 and same.stdout == b""
     missing = run(src, tmp_path / "nope.nc")  # the command line names the file
     assert missing.returncode == 7 and b"nope.nc" in missing.stderr
-    import ncopt.entry
+    import ncopt.cli.entry
     assert "typer" not in subprocess.run(
-        [sys.executable, "-c", "import sys, ncopt.entry, ncopt.diffview; "
+        [sys.executable, "-c", "import sys, ncopt.cli.entry, ncopt.report.diffview; "
          "print(' '.join(sorted(m for m in sys.modules if m.split('.')[0] in "
          "('typer', 'rich', 'numpy'))))"], capture_output=True, text=True).stdout
-    assert ncopt.entry.DIFFERENT == 1
+    assert ncopt.cli.entry.DIFFERENT == 1

@@ -11,8 +11,8 @@ import pytest
 
 from ncopt.api import Job, rewrite_text
 from ncopt.model import Machine
-from ncopt.stamp import STAMP_LINE, read_stamps
-from ncopt.parse import parse_text
+from ncopt.reading.stamp import STAMP_LINE, read_stamps
+from ncopt.reading.parse import parse_text
 
 JOB = Job(machine=Machine(accel_rad_s2=227.0, max_rpm=15000.0))
 

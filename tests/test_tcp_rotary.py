@@ -24,12 +24,12 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from ncopt.api import Job, rewrite_text
-from ncopt.cli import Exit, app
-from ncopt.errors import NothingToPlan
-from ncopt.interp import interpret
-from ncopt.kinematics import KINEMATICS, NAMES, lean, turn_deg
+from ncopt.cli.app import Exit, app
+from ncopt.runtime.errors import NothingToPlan
+from ncopt.motion.interp import interpret
+from ncopt.motion.kinematics import KINEMATICS, NAMES, lean, turn_deg
 from ncopt.model import Cutter, CuttingData, Machine
-from ncopt.parse import parse_text
+from ncopt.reading.parse import parse_text
 
 ROOT = Path(__file__).resolve().parents[1]
 BOAT = ROOT.parent / "shared" / "corpus" / "linuxcnc" / "5axis" / "boat-xyzac.ngc"
@@ -330,7 +330,7 @@ def test_g43_5_q_changes_the_spindle_speed_as_the_real_axis_does():
     Q 15 deg both ways (18446 RPM: the limit).  At each pass start the block where the
     lean turns keeps the program's S3000; a spindle as quick as 1e6 rad/s^2 then climbs
     within 20 mm to what the axis allows, never more."""
-    from ncopt.geometry import MeshIndex, mesh_from_triangles
+    from ncopt.contacts.geometry import MeshIndex, mesh_from_triangles
 
     v = np.array([[-60, -60, 0], [60, -60, 0], [60, 60, 0], [-60, 60, 0]], dtype=float)
     plane = MeshIndex(mesh_from_triangles(v[np.array([[0, 1, 2], [0, 2, 3]])]))

@@ -16,11 +16,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from ncopt.api import Job, rewrite_text
-from ncopt.errors import NothingToPlan
+from ncopt.runtime.errors import NothingToPlan
 from ncopt.model import Cutter, Machine
-from ncopt.operations import operation_comments
-from ncopt.parse import parse_text
-from ncopt.tooltable import BALL, FLAT, OTHER, UNNUMBERED, parse_tool_comment, tool_table
+from ncopt.planning.operations import operation_comments
+from ncopt.reading.parse import parse_text
+from ncopt.planning.tooltable import BALL, FLAT, OTHER, UNNUMBERED, parse_tool_comment, tool_table
 
 MACHINE = Machine(accel_rad_s2=227.0, max_rpm=15000.0)
 JOB = Job(machine=MACHINE)
@@ -77,7 +77,7 @@ def test_diameter_does_not_turn_the_v_bit_into_a_ball(corpus_dir):
 def test_the_command_line_leaves_the_v_carve_with_its_line(corpus_dir, tmp_path):
     from typer.testing import CliRunner
 
-    from ncopt.cli import app
+    from ncopt.cli.app import app
     out = tmp_path / "out.nc"
     run = CliRunner().invoke(app, ["rewrite", str(corpus_dir / KB63), "--accel", "227",
                                    "--max-rpm", "15000", "--diameter", "6", "-o", str(out)])

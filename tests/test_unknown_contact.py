@@ -18,13 +18,13 @@ import pytest
 
 import wallpart
 from ncopt.api import Job, rewrite_text
-from ncopt.contacts import air_moves, top_of_cut, unknown_contact, up_vector
-from ncopt.geometry import MeshIndex, load_stl, mesh_contacts
-from ncopt.interp import interpret
+from ncopt.contacts.locate import air_moves, top_of_cut, unknown_contact, up_vector
+from ncopt.contacts.geometry import MeshIndex, load_stl, mesh_contacts
+from ncopt.motion.interp import interpret
 from ncopt.model import Cutter, Machine
-from ncopt.parse import parse_text
-from ncopt.pathnormals import PathNormals
-from ncopt.simulate import simulate_program
+from ncopt.reading.parse import parse_text
+from ncopt.contacts.pathnormals import PathNormals
+from ncopt.simulate.replay import simulate_program
 
 MACHINE = Machine(accel_rad_s2=227.0, max_rpm=15000.0)
 JOB = Job(machine=MACHINE)
@@ -121,7 +121,7 @@ def test_a_mesh_of_half_the_part_plans_the_other_half_at_the_full_diameter(tmp_p
     half was planned as air, the spindle free (vc +787 %, fz in band 50.7 %).  Cuts the mesh
     puts far in the air below the top of the cut it touches are planned at the full
     diameter, and a warning says the mesh may lack part of the part."""
-    from ncopt.geometry import load_stl
+    from ncopt.contacts.geometry import load_stl
 
     root = Path(__file__).resolve().parents[1]
     bowl = (root / "samples" / "bowl.mpf").read_text("latin-1")

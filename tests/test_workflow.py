@@ -1,8 +1,8 @@
 """The commands around a rewrite, end to end through typer's CliRunner.
 
 ``simulate``, ``inspect``, ``diff``, ``profiles`` and ``version`` on the sample bowl and on real
-programs of the shared corpus, with exact messages and the exit codes of ``ncopt.cli.Exit``.
-The user's real config folder never takes part: ``ncopt.profiles.user_file`` points into a
+programs of the shared corpus, with exact messages and the exit codes of ``ncopt.cli.app.Exit``.
+The user's real config folder never takes part: ``ncopt.planning.profiles.user_file`` points into a
 temporary folder and every test runs in an empty working folder.
 """
 
@@ -23,10 +23,10 @@ from rich.console import Console
 from typer.testing import CliRunner
 
 import ncopt
-from ncopt.cli import DIFFERENT, Exit, app
-from ncopt.diffview import render_side_by_side
-from ncopt.parse import parse_text
-from ncopt.profiles import EXAMPLES
+from ncopt.cli.app import DIFFERENT, Exit, app
+from ncopt.report.diffview import render_side_by_side
+from ncopt.reading.parse import parse_text
+from ncopt.planning.profiles import EXAMPLES
 
 ROOT = Path(__file__).resolve().parents[1]
 CORPUS = Path(__file__).resolve().parents[1].parent / "shared" / "corpus"
@@ -137,7 +137,7 @@ def isolated(tmp_path_factory):
     """No user config and no ./ncopt.toml take part in this module's module fixtures."""
     home = tmp_path_factory.mktemp("workflow-home")
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr("ncopt.profiles.user_file", lambda: home / "config" / "ncopt.toml")
+        mp.setattr("ncopt.planning.profiles.user_file", lambda: home / "config" / "ncopt.toml")
         mp.chdir(home)
         yield home
 
@@ -146,7 +146,7 @@ def isolated(tmp_path_factory):
 def user_toml(monkeypatch, tmp_path) -> Path:
     """The user's profile file of this test (absent unless a test writes it)."""
     path = tmp_path / "user-config" / "ncopt" / "ncopt.toml"
-    monkeypatch.setattr("ncopt.profiles.user_file", lambda: path)
+    monkeypatch.setattr("ncopt.planning.profiles.user_file", lambda: path)
     return path
 
 

@@ -7,7 +7,7 @@
     z 2, fz 0.05 mm, vc 70 m/min, no S_max; spindles of 131 / 227 / 751 rad/s^2; R_eff from
     the contact point and from the remaining material (ap 0.2 mm); the ideal program (no
     acceleration limit), the paper's forward planner and ncopt's look-ahead.  Each program
-    is replayed by ncopt.simulate on the real spindle: times, fz band, vc overshoot.
+    is replayed by ncopt.simulate.replay on the real spindle: times, fz band, vc overshoot.
 (b) Table 2: the sample bowl (samples/), D16, z 2, vc 70, fz 0.1, 227 rad/s^2, 15000 RPM:
     conventional vs contact point vs remaining material, next to the paper's 53 / 26 / 25
     min, and the forward planner's vc overshoot next to the look-ahead's.
@@ -29,10 +29,10 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from ncopt.api import Job, rewrite_text  # noqa: E402
-from ncopt.contacts import Method  # noqa: E402
-from ncopt.geometry import Mesh, MeshIndex, load_stl  # noqa: E402
+from ncopt.contacts.locate import Method  # noqa: E402
+from ncopt.contacts.geometry import Mesh, MeshIndex, load_stl  # noqa: E402
 from ncopt.model import Cutter, CuttingData, Machine, PlanOptions  # noqa: E402
-from ncopt.simulate import simulate_program  # noqa: E402
+from ncopt.simulate.replay import simulate_program  # noqa: E402
 
 PAPER_TABLE2_MIN = {"conventional": 53.0, "contact point": 26.0, "remaining material": 25.0}
 NO_LIMIT_RAD_S2 = 1e9  # "ideal": a spindle with no acceleration limit
@@ -98,7 +98,7 @@ def run_bowl(out: Path) -> list:
         rep, ser = simulate_program(prog, base, mesh, path=name, sample_mm=0.25)
         rows.append((name, rep))
         series.append((name, ser, rep))
-    from ncopt.plots import plot_along_path
+    from ncopt.report.plots import plot_along_path
     plot_along_path(series[:3], out / "bowl_along_path.png",
                     title="sample bowl: conventional vs contact point vs remaining material")
     return rows

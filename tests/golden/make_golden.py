@@ -175,7 +175,7 @@ def write_expected() -> None:
     sys.path.insert(0, str(ROOT))
     from typer.testing import CliRunner
 
-    from ncopt.cli import app
+    from ncopt.cli.app import app
 
     for folder in sorted(CASES.iterdir()):
         src = next(folder.glob("input.*"))

@@ -1,4 +1,4 @@
-"""ncopt.dialect: the Fanuc decimal point convention, found and applied."""
+"""ncopt.reading.dialect: the Fanuc decimal point convention, found and applied."""
 
 from __future__ import annotations
 
@@ -7,13 +7,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ncopt.dialect import (CALCULATOR, DECIMAL_POINT_CONVENTIONS, DIALECTS, FANUC, IS_B, IS_C,
+from ncopt.reading.dialect import (CALCULATOR, DECIMAL_POINT_CONVENTIONS, DIALECTS, FANUC, IS_B, IS_C,
                            LINUXCNC, apply_decimal_point, decimal_point_issue, detect,
                            resolve_decimal_point)
-from ncopt.errors import NcParseError, UsageError
-from ncopt.inspect import inspect_text
-from ncopt.interp import interpret
-from ncopt.parse import parse_text
+from ncopt.runtime.errors import NcParseError, UsageError
+from ncopt.planning.inspection import inspect_text
+from ncopt.motion.interp import interpret
+from ncopt.reading.parse import parse_text
 
 ROOT = Path(__file__).resolve().parents[2]
 CORPUS = (ROOT / "../shared/corpus").resolve()

@@ -18,10 +18,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.lark import from_lark
 
-from ncopt.dialect import DIALECTS, FANUC, GENERIC, GRBL, HEIDENHAIN, LINUXCNC, SINUMERIK
-from ncopt.errors import NcoptError, NcParseError
+from ncopt.reading.dialect import DIALECTS, FANUC, GENERIC, GRBL, HEIDENHAIN, LINUXCNC, SINUMERIK
+from ncopt.runtime.errors import NcoptError, NcParseError
 from ncopt.model import LineKind
-from ncopt.parse import grammar_path, parse_text, parser
+from ncopt.reading.parse import grammar_path, parse_text, parser
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from ncopt.api import Job, rewrite_text
-from ncopt.feedmode import inverse_time_words, tip_feed_mm_min
-from ncopt.interp import interpret
+from ncopt.motion.feedmode import inverse_time_words, tip_feed_mm_min
+from ncopt.motion.interp import interpret
 from ncopt.model import Cutter, CuttingData, Machine
-from ncopt.parse import parse_text
-from ncopt.simulate import simulate_program
+from ncopt.reading.parse import parse_text
+from ncopt.simulate.replay import simulate_program
 
 JOB = Job(machine=Machine(227, 18000), cutter=Cutter(10, 2), cutting=CuttingData(150, 0.08))
 
@@ -112,7 +112,7 @@ def test_a_rotary_only_move_keeps_its_feed_in_g93_and_g94():
 
 
 def test_g93_blocks_are_timed_as_their_own_minutes_rotary_only_too():
-    from ncopt.times import feed_minutes, untimed_moves
+    from ncopt.motion.times import feed_minutes, untimed_moves
 
     text = ("G21 G90 G94 M428\nS3000 M3\nG0 X0 Y0 Z0 A0 C0\nG1 X1 F500\nG93\n"
             "G1 X3 F250\nG1 C30 F12.5\nG1 X4 F100\nG94\nM30\n")

@@ -1,4 +1,4 @@
-"""Safe file output (ncopt.fileio): modes, devices, links, folders, faults, backups, races.
+"""Safe file output (ncopt.runtime.fileio): modes, devices, links, folders, faults, backups, races.
 
 Permission faults are tested twice: for real where permission bits bind (not root), and
 with the OSError injected, so that the error path runs on every machine (CI runs as root).
@@ -16,9 +16,9 @@ from pathlib import Path
 
 import pytest
 
-from ncopt import fileio
-from ncopt.errors import FileError, UsageError
-from ncopt.fileio import (TMP_SUFFIX, backups_of, clean_stale_temporaries, output_file,
+from ncopt.runtime import fileio
+from ncopt.runtime.errors import FileError, UsageError
+from ncopt.runtime.fileio import (TMP_SUFFIX, backups_of, clean_stale_temporaries, output_file,
                           output_target, read_input, replace_in_place, write_output)
 
 ROOT_USER = os.name == "posix" and os.geteuid() == 0
@@ -371,7 +371,7 @@ def test_a_temporary_of_an_ended_unreaped_process_is_stale(tmp_path):
     import sys
     import time
 
-    from ncopt import fileio
+    from ncopt.runtime import fileio
 
     child = subprocess.Popen([sys.executable, "-c", "pass"])
     t0 = time.monotonic()

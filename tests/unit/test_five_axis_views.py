@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from ncopt.api import Job
-from ncopt.geometry import MeshIndex, mesh_from_triangles
-from ncopt.inspect import inspect_text, render_inspection
+from ncopt.contacts.geometry import MeshIndex, mesh_from_triangles
+from ncopt.planning.inspection import inspect_text, render_inspection
 from ncopt.model import Cutter, CuttingData, Machine
-from ncopt.simulate import simulate_program
+from ncopt.simulate.replay import simulate_program
 
 R = 5.0
 JOB = Job(machine=Machine(227, 18000), cutter=Cutter(10, 2), cutting=CuttingData(150, 0.08))
@@ -77,7 +77,7 @@ def test_inspect_names_the_kinematics_and_the_tilt():
 
 def test_plots_and_csv_show_the_tilt(tmp_path):
     matplotlib = pytest.importorskip("matplotlib")
-    from ncopt.plots import plot_along_path, plot_toolpath
+    from ncopt.report.plots import plot_along_path, plot_toolpath
 
     matplotlib.rcParams["svg.fonttype"] = "none"  # text as text, to be read back
     report, series = simulate_program(program("ijk"), JOB, plane_mesh())

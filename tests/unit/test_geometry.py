@@ -1,4 +1,4 @@
-"""Contacts from a mesh (ncopt.geometry): closed forms, STL reading, the pool."""
+"""Contacts from a mesh (ncopt.contacts.geometry): closed forms, STL reading, the pool."""
 
 from __future__ import annotations
 
@@ -12,9 +12,9 @@ from scipy.spatial import ConvexHull
 from stl import Mode
 from stl import mesh as stl_mesh
 
-from ncopt import geometry
-from ncopt.errors import MeshError
-from ncopt.geometry import Mesh, MeshIndex, contacts_from_mesh, load_stl, mesh_contacts
+from ncopt.contacts import geometry
+from ncopt.runtime.errors import MeshError
+from ncopt.contacts.geometry import Mesh, MeshIndex, contacts_from_mesh, load_stl, mesh_contacts
 from ncopt.model import Cutter
 
 BALL = Cutter(diameter_mm=8.0, teeth=2)
@@ -372,7 +372,7 @@ def test_mesh_resolution_of_a_unit_grid():
 
 def test_mesh_resolution_is_the_same_in_chunks(monkeypatch):
     # chunk by chunk (bounded temporaries) and in one go: the same lengths to the bit
-    from ncopt import mesh as mesh_module
+    from ncopt.contacts import mesh as mesh_module
     rng = np.random.default_rng(7)
     m = grid_mesh(np.cumsum(rng.uniform(0.1, 1.0, 9)), np.cumsum(rng.uniform(0.1, 1.0, 8)),
                   lambda x: np.sin(x) * 0.3)
@@ -434,12 +434,12 @@ def test_corners_merge_by_grid_point_in_key_order(corner, jitter, pitch, seed, d
 def test_corners_merge_the_same_when_every_hash_collides(monkeypatch):
     """Equal hashes for all rows (each run then split wherever equal corners are not
     neighbours in file order): the same mesh as sorting every corner."""
-    import ncopt.mesh
+    import ncopt.contacts.mesh
     rng = np.random.default_rng(7)
     tri = (rng.integers(0, 4, size=(300, 3, 3)) * 0.5).astype(np.float32)
     expected = _merged_by_sorting_all_corners(tri, 1e-6)
-    monkeypatch.setattr(ncopt.mesh, "_MIX", np.zeros(6, dtype=np.uint64))
-    order, run, first = ncopt.mesh._same_bits(tri.reshape(-1, 3))
+    monkeypatch.setattr(ncopt.contacts.mesh, "_MIX", np.zeros(6, dtype=np.uint64))
+    order, run, first = ncopt.contacts.mesh._same_bits(tri.reshape(-1, 3))
     assert np.array_equal(order, np.arange(900)) and run[-1] + 1 > 64  # split: > 4^3 points
     ours = geometry.mesh_from_triangles(tri)
     assert ours.V.tobytes() == expected.V.tobytes()
@@ -523,7 +523,7 @@ def test_a_non_finite_query_point_has_no_closest_point(sphere_index):
 
 
 def test_map_in_threads_keeps_order_and_runs_serially_when_asked():
-    from ncopt.threads import map_in_threads
+    from ncopt.runtime.threads import map_in_threads
 
     assert map_in_threads(lambda x: x * x, range(20), 4) == [x * x for x in range(20)]
     assert map_in_threads(lambda x: x, [], 4) == []

@@ -1,4 +1,4 @@
-"""ncopt.inspect: what it says about tools, units and dialects, as the program's owner reads it."""
+"""ncopt.planning.inspection: what it says about tools, units and dialects, as the program's owner reads it."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import json
 
 from rich.console import Console
 
-from ncopt.inspect import inspect_text, render_inspection
+from ncopt.planning.inspection import inspect_text, render_inspection
 
 
 def shown(text: str, dialect: str | None = None) -> list[str]:

@@ -1,4 +1,4 @@
-"""ncopt.interp: units, distance modes, arcs with exact lengths, modal F/S, unknown positions."""
+"""ncopt.motion.interp: units, distance modes, arcs with exact lengths, modal F/S, unknown positions."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ncopt.errors import NcoptError
-from ncopt.interp import StartState, ffill, interpret
+from ncopt.runtime.errors import NcoptError
+from ncopt.motion.interp import StartState, ffill, interpret
 from ncopt.model import Motion
-from ncopt.parse import parse_text
+from ncopt.reading.parse import parse_text
 
 MM = 25.4
 

@@ -8,7 +8,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from ncopt import kdtree
+from ncopt.contacts import kdtree
 
 
 def _run(code: str) -> subprocess.CompletedProcess:
@@ -19,7 +19,7 @@ def _run(code: str) -> subprocess.CompletedProcess:
 def test_importing_the_api_does_not_import_scipy_spatial():
     done = _run("""
         import sys
-        import ncopt.api, ncopt.cli
+        import ncopt.api, ncopt.cli.app
         print('scipy.spatial' in sys.modules)
     """)
     assert done.returncode == 0, done.stderr
@@ -31,7 +31,7 @@ def test_importing_the_api_loads_no_mesh_library():
     # needs them
     done = _run("""
         import sys
-        import ncopt.api, ncopt.cli, ncopt.geometry
+        import ncopt.api, ncopt.cli.app, ncopt.contacts.geometry
         print(sorted(m for m in ('igl', 'fcpw', 'scipy.sparse', 'stl') if m in sys.modules))
     """)
     assert done.returncode == 0, done.stderr
@@ -44,9 +44,9 @@ def test_a_mesh_indexed_in_a_thread_while_the_tree_is_prefetched():
     done = _run("""
         import threading
         import numpy as np
-        from ncopt import kdtree
-        from ncopt.geometry import MeshIndex
-        from ncopt.mesh import Mesh
+        from ncopt.contacts import kdtree
+        from ncopt.contacts.geometry import MeshIndex
+        from ncopt.contacts.mesh import Mesh
         V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
         F = np.array([[0, 1, 2]])
         got = []
@@ -72,11 +72,11 @@ def test_a_fork_right_after_the_prefetch_gets_a_usable_scipy():
     # by the prefetch thread, which the child does not have: its import then hangs
     done = _run("""
         import os, sys
-        from ncopt import kdtree
+        from ncopt.contacts import kdtree
         kdtree.prefetch()
         pid = os.fork()
         if pid == 0:
-            from ncopt.kdtree import cKDTree
+            from ncopt.contacts.kdtree import cKDTree
             cKDTree([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]).query([[0.1, 0.0, 0.0]])
             os._exit(0)
         _, status = os.waitpid(pid, 0)
@@ -89,7 +89,7 @@ def test_a_fork_right_after_the_prefetch_gets_a_usable_scipy():
 def test_prefetch_starts_one_thread_per_process():
     done = _run("""
         import threading
-        from ncopt import kdtree
+        from ncopt.contacts import kdtree
         kdtree.prefetch(); kdtree.prefetch()
         print(sum(t.name == 'ncopt-import-scipy' for t in threading.enumerate()) <= 1)
         kdtree._started.join()
@@ -109,7 +109,9 @@ def test_a_rewrite_with_a_mesh_imports_the_tree_where_a_thread_is_idle(slow, fir
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     done = _run(f"""
         import sys, threading, time
-        from ncopt import api, geometry, kdtree
+        from ncopt import api
+        from ncopt.contacts import geometry
+        from ncopt.contacts import kdtree
         from ncopt.model import Cutter, Machine
         where = []
         load = kdtree.load

@@ -1,4 +1,4 @@
-"""ncopt.kinematics: each named kinematics against an independent derivation (rotation
+"""ncopt.motion.kinematics: each named kinematics against an independent derivation (rotation
 matrices for ISO 841, LinuxCNC's own forward kinematics for its variants), the blend
 between block ends, G68.2's frame."""
 
@@ -11,8 +11,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ncopt.errors import UsageError
-from ncopt.kinematics import KINEMATICS, NAMES, blend, check_name, euler_zxz, tilt_deg
+from ncopt.runtime.errors import UsageError
+from ncopt.motion.kinematics import KINEMATICS, NAMES, blend, check_name, euler_zxz, tilt_deg
 
 ANGLE = st.floats(-360, 360, allow_nan=False)
 

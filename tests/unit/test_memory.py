@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ncopt import memory
-from ncopt.memory import _malloc_trim, release_freed_memory
+from ncopt.runtime import memory
+from ncopt.runtime.memory import _malloc_trim, release_freed_memory
 
 
 def _rss_kb() -> int:
@@ -51,7 +51,7 @@ def test_while_a_rewrite_runs_large_arrays_come_from_the_heap():
     # mapping of its own; held, the next one comes from the heap
     code = textwrap.dedent("""
         import ctypes, numpy as np
-        from ncopt import memory
+        from ncopt.runtime import memory
         class Info(ctypes.Structure):
             _fields_ = [(n, ctypes.c_size_t) for n in ("arena", "ordblks", "smblks", "hblks",
                         "hblkhd", "usmblks", "fsmblks", "uordblks", "fordblks", "keepcost")]
@@ -125,7 +125,7 @@ def test_the_mesh_is_freed_once_the_contacts_are_found(monkeypatch, bowl_stl):
     from concurrent.futures import ThreadPoolExecutor
 
     from ncopt import api
-    from ncopt.geometry import MeshIndex, load_stl
+    from ncopt.contacts.geometry import MeshIndex, load_stl
     from ncopt.model import Cutter, Machine
 
     alive, refs = [], []

@@ -1,4 +1,4 @@
-"""ncopt.orientation: everything that tilts the tool is read; a move whose tool axis
+"""ncopt.motion.orientation: everything that tilts the tool is read; a move whose tool axis
 ncopt cannot know is left as programmed, with a located reason."""
 
 from __future__ import annotations
@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from ncopt.api import Job, rewrite_text
-from ncopt.errors import NcoptError, NothingToPlan
-from ncopt.interp import interpret
+from ncopt.runtime.errors import NcoptError, NothingToPlan
+from ncopt.motion.interp import interpret
 from ncopt.model import Cutter, CuttingData, Machine
-from ncopt.parse import parse_text
+from ncopt.reading.parse import parse_text
 
 # the programs here are a few straight lines: planned whatever their geometry says
 JOB = Job(machine=Machine(227, 15000), cutter=Cutter(10, 2), cutting=CuttingData(150, 0.08),

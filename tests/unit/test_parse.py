@@ -1,4 +1,4 @@
-"""ncopt.parse: words and their spans, opaque lines, located errors, fast path == Lark.
+"""ncopt.reading.parse: words and their spans, opaque lines, located errors, fast path == Lark.
 
 The fast path must agree with Lark for every grammar: the generic one and each
 dialect's (tests/unit/test_dialect_grammars.py tests what each dialect reads).
@@ -15,10 +15,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.lark import from_lark
 
-from ncopt.dialect import DIALECTS, GENERIC
-from ncopt.errors import NcoptError, NcParseError, UsageError
+from ncopt.reading.dialect import DIALECTS, GENERIC
+from ncopt.runtime.errors import NcoptError, NcParseError, UsageError
 from ncopt.model import LineKind
-from ncopt.parse import byte_classes, parse_text, parser
+from ncopt.reading.parse import byte_classes, parse_text, parser
 
 ROOT = Path(__file__).resolve().parents[2]
 CORPUS = (ROOT / "../shared/corpus").resolve()

@@ -1,4 +1,4 @@
-"""ncopt.passes: one S per pass, changed only on the moves between passes.
+"""ncopt.planning.passes: one S per pass, changed only on the moves between passes.
 
 Closed form: with c_q the lowest requirement of pass q and R(p, q) the speed the
 spindle can gain or lose over the non-cutting blocks between passes p and q, the
@@ -12,11 +12,12 @@ import math
 import numpy as np
 import pytest
 
-from ncopt import passes, planner
+from ncopt.planning import passes
+from ncopt.planning import spindle
 from ncopt.api import Job, rewrite_text
 from ncopt.model import Cutter, CuttingData, Machine, PlanOptions
-from ncopt.parse import parse_text
-from ncopt.simulate import simulate_program
+from ncopt.reading.parse import parse_text
+from ncopt.simulate.replay import simulate_program
 
 A_RPM_S = 1000.0
 MACHINE = Machine(accel_rad_s2=A_RPM_S * 2 * math.pi / 60, max_rpm=12000.0)
@@ -28,7 +29,7 @@ def blocks(kinds, req, time_s, length=1.0, planned=None, start=None):
     """Blocks from a string: 'c' a cutting block, '.' a non-cutting one."""
     cutting = np.array([k == "c" for k in kinds])
     n = cutting.size
-    return planner.Blocks(
+    return spindle.Blocks(
         length_mm=np.broadcast_to(np.asarray(length, float), (n,)).copy(),
         req_rpm=np.where(cutting, np.asarray(req, float), np.inf),
         cutting=cutting, planned=np.ones(n, bool) if planned is None else planned,
@@ -38,7 +39,7 @@ def blocks(kinds, req, time_s, length=1.0, planned=None, start=None):
 
 def reach(time_s):
     """What one non-cutting block lets the spindle change, with the planner's reserve."""
-    return max(A_RPM_S * time_s * (1 - planner.PLAN_MARGIN) - passes._ROUNDING_RPM, 0.0)
+    return max(A_RPM_S * time_s * (1 - spindle.PLAN_MARGIN) - passes._ROUNDING_RPM, 0.0)
 
 
 def test_passes_are_runs_of_cutting_blocks_that_move():
@@ -87,7 +88,7 @@ def test_each_pass_runs_at_the_highest_feasible_speed(caps, gaps):
             req += [0.0, 0.0]
             time_s += [gaps[i] / 2] * 2
     b = blocks(kinds, req, time_s)
-    em, f, _ = planner.plan(b, MACHINE, CUT, 2, BETWEEN)
+    em, f, _ = spindle.plan(b, MACHINE, CUT, 2, BETWEEN)
     pid = passes.pass_ids(b)
     got = [em.s_cmd_rpm[pid == p][0] for p in range(len(caps))]
     gap_reach = [2 * reach(g / 2) for g in gaps]
@@ -111,7 +112,7 @@ def test_each_pass_runs_at_the_highest_feasible_speed(caps, gaps):
 def test_s_changes_only_on_the_blocks_between_passes():
     b = blocks("ccc..ccc..ccc", req=[3000] * 3 + [0, 0] + [9000] * 3 + [0, 0] + [2000] * 3,
                time_s=[0.1] * 3 + [1, 1] + [0.1] * 3 + [1, 1] + [0.1] * 3)
-    em, _, _ = planner.plan(b, MACHINE, CUT, 2, BETWEEN)
+    em, _, _ = spindle.plan(b, MACHINE, CUT, 2, BETWEEN)
     s = em.s_cmd_rpm
     changed = np.flatnonzero(s[1:] != s[:-1]) + 1
     assert changed.size == 2
@@ -122,7 +123,7 @@ def test_s_changes_only_on_the_blocks_between_passes():
 def test_a_rise_smaller_than_the_step_keeps_the_speed():
     b = blocks("ccc..ccc", req=[3000] * 3 + [0, 0] + [3005] * 3, time_s=[0.1] * 3 + [1, 1] +
                [0.1] * 3)
-    em, _, _ = planner.plan(b, MACHINE, CUT, 2, BETWEEN)
+    em, _, _ = spindle.plan(b, MACHINE, CUT, 2, BETWEEN)
     assert np.all(em.s_cmd_rpm == 3000)
 
 
@@ -130,7 +131,7 @@ def test_a_spindle_start_between_passes_frees_the_next_pass():
     start = np.zeros(8, bool)
     start[3] = True  # the spindle stops and starts again between the passes (tool change)
     b = blocks("ccc..ccc", req=[1000] * 3 + [0, 0] + [11000] * 3, time_s=[0.1] * 8, start=start)
-    em, _, _ = planner.plan(b, MACHINE, CUT, 2, BETWEEN)
+    em, _, _ = spindle.plan(b, MACHINE, CUT, 2, BETWEEN)
     assert em.s_cmd_rpm[-1] == 11000  # no ramp from 1000 needed: the control brings it up
 
 

@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 from ncopt.api import Job, rewrite_text
-from ncopt.geometry import MeshIndex, load_stl
-from ncopt.interp import interpret
+from ncopt.contacts.geometry import MeshIndex, load_stl
+from ncopt.motion.interp import interpret
 from ncopt.model import Cutter, Machine
-from ncopt.parse import read_program
-from ncopt.pathnormals import CONFIDENT, NO_CROSS, ONE_SIDED, path_normals
+from ncopt.reading.parse import read_program
+from ncopt.contacts.pathnormals import CONFIDENT, NO_CROSS, ONE_SIDED, path_normals
 
 ROOT = Path(__file__).resolve().parents[2]
 

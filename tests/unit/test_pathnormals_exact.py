@@ -1,5 +1,5 @@
 """The toolpath normals are computed the same, bit for bit, however they are chunked and
-threaded: against a plain reference (the arithmetic of ncopt.pathnormals before it was
+threaded: against a plain reference (the arithmetic of ncopt.contacts.pathnormals before it was
 reorganised for speed: one chunk, no threads, numpy's default passes), on toolpaths with
 ties among the neighbours, breaks, repeated points, plunges, signed zeros and 5-axis
 tool axes."""
@@ -12,10 +12,10 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
-import ncopt.pathnormals as pn
-from ncopt.interp import row_norms
+import ncopt.contacts.pathnormals as pn
+from ncopt.motion.interp import row_norms
 from ncopt.model import Cutter
-from ncopt.tools import r_eff_mm
+from ncopt.contacts.cutters import r_eff_mm
 
 
 def reference(centers, path, cutting, axis=None, k=pn.K_NEIGHBOURS):

@@ -1,4 +1,4 @@
-"""ncopt.plots: the decimation keeps every bucket's extremes; labels and legends stay
+"""ncopt.report.plots: the decimation keeps every bucket's extremes; labels and legends stay
 off each other and off the data; the original's curve stays visible."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import pytest
 
 pytest.importorskip("matplotlib")
 
-from ncopt import plots  # noqa: E402
-from ncopt.simulate import SimReport, SimSeries  # noqa: E402
+from ncopt.report import plots# noqa: E402
+from ncopt.simulate.replay import SimReport, SimSeries  # noqa: E402
 
 
 def _loop_decimate(x, y, max_points):

@@ -1,4 +1,4 @@
-"""ncopt.refuse: input a control would refuse, refused at its line and column with the reason.
+"""ncopt.reading.refuse: input a control would refuse, refused at its line and column with the reason.
 
 Each refusal is checked against LinuxCNC's rs274 where it is installed (tests/judge.py):
 what ncopt refuses, rs274 refuses too; what ncopt accepts as legitimate (several M or G
@@ -11,10 +11,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ncopt.errors import NcoptError, NcParseError
-from ncopt.interp import interpret
-from ncopt.parse import parse_text
-from ncopt.refuse import CONTEXT_CHARS, caret_context
+from ncopt.runtime.errors import NcoptError, NcParseError
+from ncopt.motion.interp import interpret
+from ncopt.reading.parse import parse_text
+from ncopt.reading.refuse import CONTEXT_CHARS, caret_context
 
 from judge import RS274, canon
 

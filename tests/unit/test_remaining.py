@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from ncopt.model import Cutter
-from ncopt.remaining import r_eff_material_mm
+from ncopt.contacts.remaining import r_eff_material_mm
 
 BALL = Cutter(16.0, 2)
 S45 = np.sqrt(0.5)

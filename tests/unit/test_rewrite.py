@@ -1,4 +1,4 @@
-"""ncopt.rewrite (and the rewrite entry point): splicing, number styles, separators, CRLF."""
+"""ncopt.writing.edits (and the rewrite entry point): splicing, number styles, separators, CRLF."""
 
 from __future__ import annotations
 
@@ -12,12 +12,12 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from ncopt.api import Job, rewrite_text
-from ncopt.errors import VerificationError
-from ncopt.interp import interpret
+from ncopt.runtime.errors import VerificationError
+from ncopt.motion.interp import interpret
 from ncopt.model import Cutter, CuttingData, Edit, LineKind, Machine
-from ncopt import rewrite
-from ncopt.parse import parse_text
-from ncopt.rewrite import (F_CODE, S_CODE, Targets, WordStyle, apply_edits, detect_style,
+from ncopt.writing import edits
+from ncopt.reading.parse import parse_text
+from ncopt.writing.edits import (F_CODE, S_CODE, Targets, WordStyle, apply_edits, detect_style,
                            masked, plan_edits)
 
 
@@ -156,12 +156,12 @@ def test_apply_edits_is_the_plain_splice_whatever_its_block(case, block):
         end = min(at + length, len(text))
         edits.append(Edit(at, end, new))
         last = end
-    old = rewrite.SPLICE_BLOCK
-    rewrite.SPLICE_BLOCK = block
+    old = edits.SPLICE_BLOCK
+    edits.SPLICE_BLOCK = block
     try:
         assert apply_edits(text, edits) == _spliced_reference(text, edits)
     finally:
-        rewrite.SPLICE_BLOCK = old
+        edits.SPLICE_BLOCK = old
 
 
 def test_overlapping_edits_raise():

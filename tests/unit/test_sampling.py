@@ -12,18 +12,18 @@ import numpy as np
 import pytest
 from hypothesis import given, strategies as st
 
-from ncopt import planner
+from ncopt.planning import spindle
 from ncopt.api import Job, nominal_cutting_data, rewrite_text
-from ncopt.contacts import (MAX_SAMPLES_PER_MOVE, _mesh_probe, contacts_for,
+from ncopt.contacts.locate import (MAX_SAMPLES_PER_MOVE, _mesh_probe, contacts_for,
                             mesh_contacts_at_samples, path_contacts_at_samples, sample_points)
-from ncopt.geometry import MeshIndex, load_stl, mesh_from_triangles
-from ncopt.mesh import spatial_order
-from ncopt.interp import interpret
+from ncopt.contacts.geometry import MeshIndex, load_stl, mesh_from_triangles
+from ncopt.contacts.mesh import spatial_order
+from ncopt.motion.interp import interpret
 from ncopt.model import Contacts, Cutter, Machine, Motion
-from ncopt.parse import parse_text
-from ncopt.sampling import Refinement, adaptive_samples
-from ncopt.simulate import simulate_program
-from ncopt.tools import required_rpm
+from ncopt.reading.parse import parse_text
+from ncopt.contacts.sampling import Refinement, adaptive_samples
+from ncopt.simulate.replay import simulate_program
+from ncopt.contacts.cutters import required_rpm
 
 SAMPLES = Path(__file__).resolve().parents[2] / "samples"
 
@@ -97,13 +97,13 @@ class Case:
         feed = np.isin(self.tp.motion, [Motion.LINEAR, Motion.ARC_CW, Motion.ARC_CCW])
         self.sel = feed & self.tp.known & self.tp.spindle_on
         self.cut = nominal_cutting_data(self.tp, self.sel, cutter, "<test>")
-        self.s_lo, self.s_hi = planner.speed_limits(MACHINE, self.cut, cutter.teeth)
-        self.idx = planner.block_index(self.tp.line)
+        self.s_lo, self.s_hi = spindle.speed_limits(MACHINE, self.cut, cutter.teeth)
+        self.idx = spindle.block_index(self.tp.line)
 
     def block_req(self, contacts, point) -> tuple[np.ndarray, np.ndarray]:
         """(required S capped to the machine's range, cutting) per block."""
         tp = self.tp
-        b = planner.blocks_from_contacts(
+        b = spindle.blocks_from_contacts(
             self.idx, tp.seg_len_mm, tp.motion, tp.feed_mm_min, tp.known, tp.spindle_on,
             tp.spindle_rpm, required_rpm(contacts.r_eff_mm, self.cut.vc_m_min),
             contacts.cutting, point, self.sel, MACHINE.rapid_mm_min)
@@ -319,7 +319,7 @@ def test_queries_in_spatial_order_give_the_path_order_answers(wave):
 def test_later_levels_judging_only_around_new_samples_split_the_same(wave, drawn, coarse_mm):
     """Each level after the first judges the intervals around its new samples only:
     the same samples, bit for bit, as judging every interval at every level."""
-    import ncopt.sampling as sampling
+    import ncopt.contacts.sampling as sampling
 
     text, _ = drawn
     case = Case(text, BALL10)
@@ -343,7 +343,7 @@ def test_inserted_rows_land_as_numpy_insert_puts_them(n, at, tail):
     a = np.arange(n * (3 if tail else 1), dtype=float).reshape(n, *tail)
     at = np.array(sorted(i for i in at if i <= n), dtype=np.int64)
     rows = -1.0 - np.arange(at.size * (3 if tail else 1), dtype=float).reshape(at.size, *tail)
-    import ncopt.sampling as sampling
+    import ncopt.contacts.sampling as sampling
 
     np.testing.assert_array_equal(sampling._insert_rows(a, at, rows),
                                   np.insert(a, at, rows, axis=0))

@@ -1,4 +1,4 @@
-"""The machine simulation (ncopt.simulate): closed forms, lag detection, the bowl end to end.
+"""The machine simulation (ncopt.simulate.replay): closed forms, lag detection, the bowl end to end.
 
 Closed-form cases run on small planes written as STL files: a D16 ball whose tip
 follows the plane at the right height touches it all along (gap 0), with
@@ -20,14 +20,14 @@ from hypothesis import strategies as st
 from stl import mesh as stl_mesh
 
 from ncopt.api import Job, rewrite_file, rewrite_text
-from ncopt.contacts import mesh_contacts_at_samples
-from ncopt.errors import UsageError
-from ncopt.geometry import MeshIndex, load_stl
-from ncopt.interp import interpret
+from ncopt.contacts.locate import mesh_contacts_at_samples
+from ncopt.runtime.errors import UsageError
+from ncopt.contacts.geometry import MeshIndex, load_stl
+from ncopt.motion.interp import interpret
 from ncopt.model import Cutter, CuttingData, Machine, PlanOptions
-from ncopt.parse import parse_text
-from ncopt import simulate
-from ncopt.simulate import _run_start_speeds, simulate_file, simulate_program
+from ncopt.reading.parse import parse_text
+from ncopt.simulate import replay
+from ncopt.simulate.replay import _run_start_speeds, simulate_file, simulate_program
 
 ROOT = Path(__file__).resolve().parents[2]
 BALL16 = Cutter(16, 2)
@@ -344,7 +344,7 @@ def test_cutting_with_the_spindle_stopped_is_reported(flat):
 def test_lagging_blocks_finds_an_s_jump_the_spindle_cannot_make():
     """S1000 -> S10000 on a 10 mm move at F2000: the spindle (2168 RPM/s) needs 4.2 s, the
     move takes 0.3 s: fz is far out of its band there; a move at the steady S is not."""
-    from ncopt.simulate import lagging_blocks
+    from ncopt.simulate.replay import lagging_blocks
     text = "G21 G90\nS1000 M3\nG0 X0 Y0 Z0\nG1 X10 F200\nG1 X20 S10000 F2000\nG1 X30\nM5\nM30\n"
     prog = parse_text(text)
     tp = interpret(prog)

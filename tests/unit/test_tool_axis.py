@@ -10,11 +10,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from ncopt.api import Job, rewrite_text
-from ncopt.errors import NothingToPlan
+from ncopt.runtime.errors import NothingToPlan
 from ncopt.model import Cutter, CuttingData, Machine
-from ncopt.pathnormals import path_normals, tilt_from_axis
-from ncopt.remaining import r_eff_material_mm
-from ncopt.tools import r_eff_mm
+from ncopt.contacts.pathnormals import path_normals, tilt_from_axis
+from ncopt.contacts.remaining import r_eff_material_mm
+from ncopt.contacts.cutters import r_eff_mm
 
 BALL = Cutter(10.0, 2)
 BULL = Cutter(10.0, 2, corner_radius_mm=2.0)

@@ -1,4 +1,4 @@
-"""Closed-form checks of the cutter shapes (ncopt.tools)."""
+"""Closed-form checks of the cutter shapes (ncopt.contacts.cutters)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ncopt.model import Cutter
-from ncopt.tools import center_offset_mm, r_eff_mm, required_rpm
+from ncopt.contacts.cutters import center_offset_mm, r_eff_mm, required_rpm
 
 BALL = Cutter(diameter_mm=16.0, teeth=2)
 BULL = Cutter(diameter_mm=16.0, teeth=2, corner_radius_mm=2.0)
@@ -80,10 +80,10 @@ def test_required_rpm_is_inverse_in_radius_and_infinite_at_the_tip():
 # One real-looking comment per CAM system (from its post-processor or real output), and
 # what it says: (T number or UNNUMBERED, kind, diameter, corner radius or None, teeth,
 # unit or None for the program's, source).
-from ncopt.parse import parse_text  # noqa: E402
-from ncopt.tooltable import (BULL_NO_RADIUS, FLAT, OTHER, UNKNOWN, UNNUMBERED,  # noqa: E402
+from ncopt.reading.parse import parse_text  # noqa: E402
+from ncopt.planning.tooltable import (BULL_NO_RADIUS, FLAT, OTHER, UNKNOWN, UNNUMBERED,  # noqa: E402
                              ToolInfo, cutter_for, parse_tool_comment, tool_comments, tool_table)
-from ncopt.tooltable import BALL as BALL_NOSE, BULL as BULL_NOSE  # noqa: E402  (shapes)
+from ncopt.planning.tooltable import BALL as BALL_NOSE, BULL as BULL_NOSE  # noqa: E402  (shapes)
 
 CAM_COMMENTS = [
     ("T1 D=8 CR=4 - ZMIN=-19.999 - ball end mill",

@@ -1,0 +1,1 @@
+"""The ncopt command: a thin layer over the library."""

@@ -1,0 +1,273 @@
+"""Contact normals from the toolpath alone, for programs that come without a mesh.
+
+The surface traced by the cutter centre is an offset of the part surface, so it
+has the same normals.  At every cutter-centre point:
+
+* the along-pass tangent ``t`` comes from its neighbours on the path;
+* the cross-slope comes from nearby points on *other* passes: neighbours from a
+  k-d tree (scipy's cKDTree) whose distance along the path is much larger than
+  their straight distance;
+* the normal is the unit vector perpendicular to ``t`` that best fits the
+  offsets to those neighbours (a weighted 2x2 least-squares problem, solved in
+  closed form for all points at once), oriented toward the tool (+Z, or in 5
+  axes the tool axis at the point: ball centres trace the part's offset surface
+  whatever the axis, so the estimate holds; "vertical" below means "along the
+  tool axis").
+
+Where neighbours lie on one side only (the first and last pass, the edge of
+the machined area) the fit is one-sided and a curved surface tilts it: such
+points get a lower confidence, and the planner makes them conservative.  Where
+no other pass is near (a single 2D profile) the cross-slope cannot be known:
+it is taken as zero and reported.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ncopt.motion.interp import row_norms
+from ncopt.contacts.kdtree import cKDTree
+from ncopt.model import Contacts, Cutter
+from ncopt.runtime.threads import available_cpus, map_in_threads
+from ncopt.contacts.cutters import r_eff_mm
+
+K_NEIGHBOURS = 12  # enough for 4-5 points per pass on each side at CAM-typical spacings
+CHUNK = 16384  # points a chunk: its (chunk, k, 3) temporaries stay in a core's cache
+OTHER_PASS_RATIO = 3.0  # path distance > ratio * straight distance: another pass
+CONFIDENT, ONE_SIDED, NO_CROSS = 2, 1, 0
+# A one-sided fit on a curved surface tilts the normal by about half the stepover
+# times the curvature; planning takes the normal this much steeper (a larger
+# R_eff, a lower required speed), so vc stays under its target there.
+ONE_SIDED_TILT_DEG = 3.0
+
+
+@dataclass(frozen=True)
+class PathNormals:
+    """Normals per point and how far to trust them.
+
+    normal : (m, 3) unit normals toward the tool
+    confidence : (m,) int8, CONFIDENT (passes on both sides), ONE_SIDED, NO_CROSS
+    stepover_mm : median distance to the nearest other pass (nan if none)
+    """
+
+    normal: np.ndarray
+    confidence: np.ndarray
+    stepover_mm: float
+
+
+def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarray,
+                 k: int = K_NEIGHBOURS, workers: int = -1,
+                 axis: np.ndarray | None = None) -> PathNormals:
+    """Estimate surface normals at cutter-centre points.
+
+    Parameters
+    ----------
+    centers_mm : (m, 3) cutter centres in path order, mm
+    path_mm : (m,) cumulative path length at each point, mm
+    cutting : (m,) bool, points on cutting moves (only these are neighbours)
+    workers : threads for the neighbour search and the fit (-1: every CPU available)
+    axis : (m, 3) unit tool axes (5 axes), or None for +Z
+    """
+    m = centers_mm.shape[0]
+    if axis is None:
+        normal = np.zeros((m, 3))
+        normal[:, 2] = 1.0
+    else:
+        normal = axis.copy()
+    confidence = np.zeros(m, dtype=np.int8)
+    idx = np.flatnonzero(cutting)
+    if idx.size < 2:
+        return PathNormals(normal, confidence, float("nan"))
+    pts, s = np.take(centers_mm, idx, axis=0), np.take(path_mm, idx)
+    threads = available_cpus() if workers == -1 else workers
+    # the tree's build releases the GIL: the tangents are computed meanwhile
+    tree, tangent = map_in_threads(lambda job: job(), (lambda: cKDTree(pts),
+                                                       lambda: _tangents(pts, s)), threads)
+    kk = min(k + 1, idx.size)
+
+    def chunk(a: int) -> np.ndarray:  # bounded temporaries: (chunk, k, 3) at a time
+        b = min(a + CHUNK, idx.size)
+        dist, nb = tree.query(pts[a:b], k=kk, workers=1)
+        dist, nb = np.atleast_2d(dist)[:, 1:], np.atleast_2d(nb)[:, 1:]
+        up = None if axis is None else axis[idx[a:b]]
+        n, conf, closest = _fit_cross(pts[a:b], tangent[a:b], pts, nb, dist,
+                                      _other_pass(s, a, nb, dist), up)
+        normal[idx[a:b]] = n
+        confidence[idx[a:b]] = conf
+        return closest
+
+    # each thread queries and fits its own chunks: scipy's query and numpy's loops
+    # release the GIL, so the fit of one chunk overlaps the query of the next
+    near = np.concatenate(map_in_threads(chunk, range(0, idx.size, CHUNK), threads))
+    stepover = float(np.median(near[np.isfinite(near)])) if np.isfinite(near).any() else float("nan")
+    return PathNormals(normal, confidence, stepover)
+
+
+def _tangents(pts: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Unit along-path tangents: central differences, one-sided at breaks."""
+    unit = np.diff(pts, axis=0)
+    seg = row_norms(unit)
+    jump = np.diff(s)
+    jump -= seg
+    np.abs(jump, out=jump)
+    bad = jump > 1e-6  # not consecutive on the path
+    bad |= seg < 1e-9
+    np.maximum(seg, 1e-12, out=seg)
+    unit /= seg[:, None]
+    unit[bad] = 0.0
+    if not np.isfinite(seg).all():  # an overflow (inf / inf): as nan_to_num did
+        np.nan_to_num(unit, copy=False)
+    # the sum of the unit steps before and after each point, a missing one zero (the
+    # ends add 0.0 too: the same bits, signed zeros included)
+    t = np.empty((pts.shape[0], 3))
+    t[0] = 0.0
+    t[1:] = unit
+    t[:-1] += unit
+    t[-1] += 0.0
+    norm = row_norms(t)
+    t /= np.maximum(norm, 1e-12)[:, None]
+    t[norm < 1e-9] = [1.0, 0.0, 0.0]
+    return t
+
+
+def _other_pass(s: np.ndarray, a: int, nb: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """(m, k) bool: neighbour ``nb`` of point ``a + row`` lies on another pass (much
+    farther along the path, ``s``, than in a straight line, ``dist``)."""
+    along = np.take(s, nb)
+    along -= s[a:a + nb.shape[0], None]
+    np.abs(along, out=along)
+    limit = dist * OTHER_PASS_RATIO
+    limit += 1e-9
+    return np.greater(along, limit, out=np.empty(nb.shape, bool))
+
+
+def _fit_cross(pts, tangent, all_pts, nb, dist, other, axis=None):
+    """Normal perpendicular to the tangent fitting the other-pass neighbours
+    ``all_pts[nb]``; also the distance to the nearest other-pass point (inf where
+    there is none).  ``axis``: (m, 3) tool axes, None for +Z."""
+    up = np.array([0.0, 0.0, 1.0]) if axis is None else axis
+    u = np.cross(tangent, up)  # horizontal, across the pass
+    vertical = row_norms(u) < 1e-6  # a plunge: any horizontal direction will do
+    u[vertical] = [1.0, 0.0, 0.0] if axis is None else across(axis[vertical])
+    u /= np.maximum(row_norms(u), 1e-12)[:, None]
+    v = np.cross(u, tangent)  # perpendicular to the tangent, in its vertical plane
+    v[_up(v, axis) < 0] *= -1.0
+    off = np.take(all_pts, nb, axis=0)  # (m, k, 3); take: a third of all_pts[nb]'s time
+    off -= pts[:, None, :]
+    a = np.einsum("mkj,mj->mk", off, u)
+    b = np.einsum("mkj,mj->mk", off, v)
+    del off
+    saa, sbb, sab = _weighted_sums(a, b, dist, other)
+    # smallest eigenvector of [[saa, sab], [sab, sbb]]: the direction (alpha, beta)
+    # minimising sum w (alpha a + beta b)^2
+    half = 0.5 * (saa - sbb)
+    root = np.sqrt(half * half + sab * sab)
+    lam = 0.5 * (saa + sbb) - root
+    alpha, beta = sab, lam - saa
+    small = np.hypot(alpha, beta) < 1e-12 * np.maximum(saa + sbb, 1e-300)
+    alpha = np.where(small, 0.0, alpha)
+    beta = np.where(small, 1.0, beta)
+    n = alpha[:, None] * u + beta[:, None] * v
+    n /= np.maximum(row_norms(n), 1e-12)[:, None]
+    n[_up(n, axis) < 0] *= -1.0
+    has = _any_in_row(other)
+    n[~has] = v[~has]  # no other pass near: no cross-slope
+    side = np.greater(a, 0.0, out=np.empty(a.shape, bool))
+    side &= other
+    both = _any_in_row(side)
+    np.less(a, 0.0, out=side)
+    side &= other
+    both &= _any_in_row(side)
+    conf = np.where(~has, NO_CROSS, np.where(both, CONFIDENT, ONE_SIDED))
+    # the query sorts the neighbours by distance: the first other-pass one is the nearest
+    first = np.argmax(other, axis=1)
+    closest = np.where(has, np.take_along_axis(dist, first[:, None], axis=1)[:, 0], np.inf)
+    return n, conf.astype(np.int8), closest
+
+
+def _any_in_row(flags: np.ndarray) -> np.ndarray:
+    """(m,) flags.any(axis=1) for C-contiguous (m, k) bool: rows of k = 4 j bytes are
+    read as j 32-bit words (numpy's any over short rows calls its loop per row)."""
+    k = flags.shape[1]
+    if k == 0 or k % 4 or not flags.flags.c_contiguous:
+        return flags.any(axis=1)
+    words = flags.view(np.uint32)
+    acc = words[:, 0].copy()
+    for j in range(1, k // 4):
+        acc |= words[:, j]
+    return acc != 0
+
+
+def _weighted_sums(a, b, dist, other):
+    """Per row, sum w a a, sum w b b and sum w a b with w = 1 / dist^2 on the other
+    passes' neighbours, 0 elsewhere (``a``, ``b``, ``dist``, ``other``: (m, k))."""
+    w = np.maximum(dist, 1e-9)
+    np.multiply(w, w, out=w)
+    np.divide(1.0, w, out=w)
+    np.multiply(w, other, out=w)  # w is finite and >= 0 (the tree takes finite points only)
+    wa = w * a
+    term = wa * a
+    saa = term.sum(axis=1)
+    np.multiply(wa, b, out=term)
+    sab = term.sum(axis=1)
+    np.multiply(w, b, out=term)
+    term *= b
+    return saa, term.sum(axis=1), sab
+
+
+def _up(v: np.ndarray, axis: np.ndarray | None) -> np.ndarray:
+    """(m,) component of each row along the tool axis (+Z when None)."""
+    return v[:, 2] if axis is None else np.einsum("ij,ij->i", v, axis)
+
+
+def across(axis: np.ndarray) -> np.ndarray:
+    """(m, 3) unit vectors perpendicular to each tool axis (+X for +Z)."""
+    u = np.cross([0.0, 1.0, 0.0], axis)
+    small = row_norms(u) < 0.5
+    u[small] = np.cross(axis[small], [1.0, 0.0, 0.0])
+    return u / row_norms(u)[:, None]
+
+
+def contacts_from_path(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarray,
+                       cutter: Cutter, axis: np.ndarray | None = None
+                       ) -> tuple[Contacts, PathNormals]:
+    """Contacts (CC point, normal, R_eff) from the toolpath alone; ``axis`` (m, 3) the
+    tool axis per point (None: +Z)."""
+    est = path_normals(centers_mm, path_mm, cutting, axis=axis)
+    m = centers_mm.shape[0]
+    cc, r_eff = np.empty((m, 3)), np.empty(m)
+
+    def part(a: int) -> None:  # row by row: chunks in threads give the same bits
+        b = min(a + CHUNK, m)
+        normal = est.normal[a:b]
+        cc[a:b] = centers_mm[a:b] - cutter.corner_radius_mm * normal
+        tilt = np.where(est.confidence[a:b] == ONE_SIDED, np.radians(ONE_SIDED_TILT_DEG), 0.0)
+        ax = None if axis is None else axis[a:b]
+        r_eff[a:b] = r_eff_mm(cutter, tilt_from_axis(normal, tilt, ax), ax)
+
+    map_in_threads(part, range(0, m, CHUNK), available_cpus())
+    return Contacts(cc_mm=cc, normal=est.normal, r_eff_mm=r_eff, cutting=cutting.copy()), est
+
+
+def tilt_from_axis(normal: np.ndarray, angle_rad: np.ndarray,
+                   axis: np.ndarray | None = None) -> np.ndarray:
+    """Normals turned away from the tool axis (+Z, or ``axis`` (m, 3)) by ``angle_rad``
+    in the plane of both."""
+    if axis is not None:
+        c = np.clip(np.einsum("ij,ij->i", normal, axis), -1.0, 1.0)
+        side = normal - c[:, None] * axis
+        hn = row_norms(side)
+        side = np.where(hn[:, None] > 1e-12, side / np.maximum(hn, 1e-12)[:, None],
+                        across(axis))
+        polar = np.arccos(c) + angle_rad
+        return np.cos(polar)[:, None] * axis + np.sin(polar)[:, None] * side
+    polar = np.arccos(np.clip(normal[:, 2], -1.0, 1.0)) + angle_rad
+    horiz = normal[:, :2]
+    hn = np.sqrt(horiz[:, 0] * horiz[:, 0] + horiz[:, 1] * horiz[:, 1])  # linalg.norm's bits
+    direction = np.where(hn[:, None] > 1e-12, horiz / np.maximum(hn, 1e-12)[:, None], [1.0, 0.0])
+    out = np.empty_like(normal)
+    out[:, :2] = direction * np.sin(polar)[:, None]
+    out[:, 2] = np.cos(polar)
+    return out

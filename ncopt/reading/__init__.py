@@ -1,0 +1,1 @@
+"""Reading a program: grammars and dialects, numbers, expressions, what is refused, the ncopt stamp."""
