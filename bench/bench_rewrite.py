@@ -75,7 +75,7 @@ HOOKS = (
     ("mesh load: BVH + normals", "ncopt.contacts.geometry:MeshIndex.__init__"),
     ("parse", "ncopt.reading.parse:parse_text"),
     ("interpret", "ncopt.motion.interp:interpret"),
-    ("block index", "ncopt.planning.spindle:block_index"),
+    ("block index", "ncopt.planning.schedule:block_index"),
     ("tool table from comments", "ncopt.planning.tooltable:tool_table"),
     ("nominal vc/fz", "ncopt.api:nominal_cutting_data"),
     ("contacts_for", "ncopt.contacts.locate:contacts_for"),
@@ -83,11 +83,11 @@ HOOKS = (
     ("sampling (where the geometry asks)", "ncopt.contacts.sampling:adaptive_samples"),
     ("contacts (mesh)", "ncopt.contacts.geometry:mesh_contacts"),
     ("contacts (toolpath normals)", "ncopt.contacts.pathnormals:contacts_from_path"),
-    ("blocks", "ncopt.planning.spindle:blocks_from_contacts"),
-    ("planning", "ncopt.planning.spindle:plan"),
-    ("profile (look-ahead)", "ncopt.planning.spindle:lookahead"),
-    ("profile (forward)", "ncopt.planning.spindle:forward"),
-    ("emission (S commands)", "ncopt.planning.spindle:emit_rpm"),
+    ("blocks", "ncopt.planning.schedule:blocks_from_contacts"),
+    ("planning", "ncopt.planning.schedule:plan"),
+    ("profile (look-ahead)", "ncopt.planning.schedule:lookahead"),
+    ("profile (forward)", "ncopt.planning.schedule:forward"),
+    ("emission (S commands)", "ncopt.planning.schedule:emit_rpm"),
     ("styles", "ncopt.writing.edits:detect_style"),
     ("targets", "ncopt.api:_targets"),
     ("edits", "ncopt.writing.edits:plan_edits"),
@@ -119,7 +119,7 @@ def case_files(out_dir: Path, blocks: int, triangles: int,
 
 
 def sample_job():
-    from ncopt.api import Job
+    from ncopt.model import Job
     from ncopt.model import Cutter, Machine
 
     return Job(cutter=Cutter(16.0, 2), machine=Machine(accel_rad_s2=227.0, max_rpm=15000.0))

@@ -47,7 +47,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from ncopt.api import Job, rewrite_text  # noqa: E402
+from ncopt.api import rewrite_text  # noqa: E402
+from ncopt.model import Job
 from ncopt.reading.dialect import detect  # noqa: E402
 from ncopt.runtime.errors import NcoptError, NothingToPlan, UsageError  # noqa: E402
 from ncopt.planning.inspection import inspect_text  # noqa: E402

@@ -18,17 +18,20 @@ from typing import Callable
 import numpy as np
 
 from ncopt.contacts import kdtree
-from ncopt.planning import spindle
+from ncopt.planning import schedule
 from ncopt.planning import plans as _plans
-from ncopt.contacts.locate import Method, below_top_mm
+from ncopt.contacts.locate import below_top_mm
+from ncopt.model import Job, Method
+from ncopt.reading.read import read_text
 from ncopt.reading.controls import ANYWHERE, control_note, default_s_changes
 from ncopt.reading.dialect import detect, resolve_decimal_point
 from ncopt.runtime.errors import VerificationError
 from ncopt.motion.feedmode import inverse_time_words
 from ncopt.contacts.geometry import MeshIndex, load_stl
-from ncopt.motion.interp import ffill, interpret, tcp_for
+from ncopt.motion.interp import interpret, tcp_for, tcp_of
+from ncopt.motion.modal import ffill
 from ncopt.runtime.memory import release_freed_memory, small_pages, working_memory
-from ncopt.model import Cutter, CuttingData, Machine, Motion, PlanOptions, Program, Toolpath
+from ncopt.model import MM_PER_INCH, Cutter, CuttingData, Machine, Motion, PlanOptions, Program, Toolpath
 from ncopt.reading.parse import parse_text
 from ncopt.contacts.pathnormals import NO_CROSS, ONE_SIDED
 from ncopt.planning.plans import OpPlan, Work, plan_program
@@ -37,40 +40,6 @@ from ncopt.writing.edits import F_CODE, S_CODE, Targets, apply_edits, detect_sty
 from ncopt.reading.stamp import StampInfo, read_stamps, stamp_edit
 from ncopt.motion.times import feed_minutes, untimed_moves
 
-MM_PER_INCH = 25.4
-
-
-@dataclass(frozen=True)
-class Job:
-    """Everything a rewrite needs besides the program and the mesh.
-
-    cutter : None reads each tool from the program's tool comments
-    cutting : None takes vc and fz from the program's own S and F
-    tool : plan only this T number's moves
-    teeth : used when the cutter comes from the program (only matters with cutting data given)
-    """
-
-    machine: Machine
-    cutter: Cutter | None = None
-    cutting: CuttingData | None = None
-    options: PlanOptions = PlanOptions()
-    tool: int | None = None
-    control: str | None = None  # None: detected from the program's dialect
-    control_from: str = "given"  # where a set control came from (the options, a profile)
-    tool_library: dict = field(default_factory=dict)  # T number -> Cutter (profiles)
-    teeth: int = 2
-    method: Method = Method()  # contact point (default) or remaining material
-    decimal_point: str | None = None  # Fanuc input convention: calculator, is-b, is-c
-    contact_tol_mm: float = 0.05
-    verify: bool = True
-    stamp: bool = True
-    operations: tuple | None = None  # --operations: names to plan (or "all"); None: by kind
-    stock_mm: float = 0.0  # --stock: allowance the program leaves on the mesh, mm
-    diameter_bare: bool = False  # --diameter was a bare number (read as mm)
-    shape_named: bool = False  # the user named the cutter's shape (not --diameter alone)
-    kinematics: str | None = None  # 5-axis: how rotary angles tilt the tool (ncopt.motion.kinematics)
-    tcp: str | None = None  # "always": the control runs TCP for every program (else as switched)
-    machine_name: str | None = None  # the machine profile the spindle comes from (the stamp)
 
 
 ToolPlan = OpPlan  # the plan of one operation (one tool in ncopt 0.1)
@@ -164,7 +133,7 @@ class Result:
     summary: Summary
     program: Program
     toolpath: Toolpath
-    block_index: spindle.BlockIndex
+    block_index: schedule.BlockIndex
     plans: tuple[OpPlan, ...]
     targets: Targets
     operations: tuple = ()
@@ -216,26 +185,6 @@ def _loaded(mesh_index: MeshIndex | Future | None) -> MeshIndex | None:
     return mesh_index.result() if isinstance(mesh_index, Future) else mesh_index
 
 
-def tcp_of(job: Job, detected: str) -> str | None:
-    """The job's ``tcp`` for a program of the ``detected`` dialect (:func:`tcp_for`)."""
-    return tcp_for(job.tcp, job.control or detected)
-
-
-def read_text(text: str, path: str, job: Job, detected: str | None = None) -> Program:
-    """Parse a program as the job's control reads it.
-
-    With a dialect named (``job.control``: the options or a machine profile),
-    that dialect's grammar, which refuses other dialects' constructs; else the
-    generic grammar.  Values are then read in the job's decimal-point
-    convention: a Fanuc program (named or detected) with a value whose meaning
-    depends on it and no convention given is refused at that word.
-    ``detected``: the dialect :func:`ncopt.reading.dialect.detect` finds (detected here if None).
-    """
-    prog = parse_text(text, path, dialect=job.control)
-    control = job.control or detected or detect(text).name
-    return resolve_decimal_point(prog, control, job.decimal_point)
-
-
 def rewrite_text(text: str, job: Job, path: str = "<input>",
                  mesh_index: MeshIndex | Future | None = None,
                  progress: Callable[[str], None] | None = None) -> Result:
@@ -265,7 +214,7 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
                 show("reading the mesh")
                 kdtree.load()  # while the mesh's thread finishes (a short program)
             mesh_index = _loaded(mesh_index)
-            idx = spindle.block_index(tp.line)
+            idx = schedule.block_index(tp.line)
             s_style = detect_style(prog, S_CODE)
             f_style = detect_style(prog, F_CODE, default_decimals=1)
             inch = tp.line_inch is not None and bool(tp.line_inch.any())
@@ -321,7 +270,7 @@ def rewrite_text(text: str, job: Job, path: str = "<input>",
         return Result(out, summary, prog, tp, idx, tuple(work.plans), targets, work.ops, work.scope)
 
 
-def _targets(prog: Program, tp: Toolpath, idx: spindle.BlockIndex, work: "Work",
+def _targets(prog: Program, tp: Toolpath, idx: schedule.BlockIndex, work: "Work",
              f_style) -> Targets:
     """S and F to be in force per block: planned where an operation's plan owns the
     block, else the program's own; and the program's own at every fixed line that does
@@ -379,7 +328,7 @@ def _inverse_time_quantum(tp, idx, f_style) -> float:
     return 10.0 ** -f_style.decimals * float(np.max(length[g93 & tp.known[idx.first_point]]))
 
 
-def _with_fixed_lines(tp: Toolpath, idx: spindle.BlockIndex, scope: Scope,
+def _with_fixed_lines(tp: Toolpath, idx: schedule.BlockIndex, scope: Scope,
                       targets: Targets) -> Targets:
     """The block targets and the fixed lines that do not move (canned cycles, calls):
     consumers of the program's own S and F, which must be in force there too."""
@@ -545,7 +494,7 @@ def _masked_without(prog: Program, drop: list) -> str:
     return "".join(line + "\n" for i, line in enumerate(head) if i not in drop) + rest
 
 
-def _cut_minutes(tp: Toolpath, idx: spindle.BlockIndex, targets: Targets,
+def _cut_minutes(tp: Toolpath, idx: schedule.BlockIndex, targets: Targets,
                  machine: Machine) -> tuple[np.ndarray, np.ndarray]:
     """Minutes of every move before and after the rewrite (:mod:`ncopt.motion.times`), for the
     stamp and the summary alike."""
@@ -674,7 +623,7 @@ def _lag_warnings(prog, tp, idx, work: Work, targets: Targets, job: Job) -> tupl
             tuple(int(x) + 1 for x in lines))
 
 
-def _feed_after(tp: Toolpath, idx: spindle.BlockIndex, targets: Targets) -> np.ndarray:
+def _feed_after(tp: Toolpath, idx: schedule.BlockIndex, targets: Targets) -> np.ndarray:
     """(n,) F in force per point after the rewrite, mm/min (from the targets)."""
     on_block = np.isin(targets.line, idx.line)
     f_block = targets.f_value[on_block]  # program units, the blocks' order
@@ -749,7 +698,7 @@ def _plan_warnings(prog, tp, idx, work, job) -> tuple:
     return tuple(out)
 
 
-def _below_min_rpm(prog, idx: spindle.BlockIndex, work: Work, p, machine: Machine) -> list:
+def _below_min_rpm(prog, idx: schedule.BlockIndex, work: Work, p, machine: Machine) -> list:
     """Cutting blocks that need a lower S than the machine's lowest (--min-rpm): vc runs
     above its target there, and the rewrite says where and by how much."""
     c = p.blocks.cutting & p.blocks.planned
@@ -783,13 +732,6 @@ def _unknown_warning(prog, tp: Toolpath, work: Work, p) -> list:
             "plunge below the top of the cut, a pass with no neighbour): planned as if the "
             "cutter cut at its full diameter, so vc stays at or below its target there; give "
             "--mesh to plan it exactly"]
-
-
-def nominal_cutting_data(tp: Toolpath, selected: np.ndarray, cutter: Cutter,
-                         path: str) -> CuttingData:
-    """vc and fz the program itself runs at its nominal diameter over the ``selected``
-    points (mask): its S and its cutting feed (see :mod:`ncopt.planning.plans`)."""
-    return _plans.nominal_cutting_data(tp, np.flatnonzero(selected), cutter, path)
 
 
 def _finite(value):

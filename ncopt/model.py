@@ -24,6 +24,8 @@ from ncopt.runtime.errors import ValueRangeError
 
 #: ``Program.word_letter`` codes of the Sinumerik tool vector words ``A3=``, ``B3=``,
 #: ``C3=`` (not ASCII letters, so they never mix with the A, B, C rotary axis words)
+MM_PER_INCH = 25.4  # exact, by the 1959 international yard
+
 VECTOR_WORD_CODES = {"A": 0x81, "B": 0x82, "C": 0x83}
 
 
@@ -556,3 +558,47 @@ class Edits:
         return Edits(np.concatenate((self.start, other.start)),
                      np.concatenate((self.end, other.end)), self.text + other.text,
                      self.s_words + other.s_words, self.f_words + other.f_words)
+
+
+@dataclass(frozen=True)
+class Method:
+    """How R_eff is found: at the contact point (``contact``, the default) or where the
+    edge meets the remaining material of height ``ap_mm`` (``material``), offset along
+    the surface normal or the tool axis (``along``)."""
+
+    name: str = "contact"
+    ap_mm: float = 0.2
+    along: str = "normal"
+
+
+@dataclass(frozen=True)
+class Job:
+    """Everything a rewrite needs besides the program and the mesh.
+
+    cutter : None reads each tool from the program's tool comments
+    cutting : None takes vc and fz from the program's own S and F
+    tool : plan only this T number's moves
+    teeth : used when the cutter comes from the program (only matters with cutting data given)
+    """
+
+    machine: Machine
+    cutter: Cutter | None = None
+    cutting: CuttingData | None = None
+    options: PlanOptions = PlanOptions()
+    tool: int | None = None
+    control: str | None = None  # None: detected from the program's dialect
+    control_from: str = "given"  # where a set control came from (the options, a profile)
+    tool_library: dict = field(default_factory=dict)  # T number -> Cutter (profiles)
+    teeth: int = 2
+    method: Method = Method()  # contact point (default) or remaining material
+    decimal_point: str | None = None  # Fanuc input convention: calculator, is-b, is-c
+    contact_tol_mm: float = 0.05
+    verify: bool = True
+    stamp: bool = True
+    operations: tuple | None = None  # --operations: names to plan (or "all"); None: by kind
+    stock_mm: float = 0.0  # --stock: allowance the program leaves on the mesh, mm
+    diameter_bare: bool = False  # --diameter was a bare number (read as mm)
+    shape_named: bool = False  # the user named the cutter's shape (not --diameter alone)
+    kinematics: str | None = None  # 5-axis: how rotary angles tilt the tool (ncopt.motion.kinematics)
+    tcp: str | None = None  # "always": the control runs TCP for every program (else as switched)
+    machine_name: str | None = None  # the machine profile the spindle comes from (the stamp)

@@ -11,7 +11,8 @@ import pytest
 from rich.console import Console
 from typer.testing import CliRunner
 
-from ncopt.api import Job, rewrite_text
+from ncopt.api import rewrite_text
+from ncopt.model import Job
 from ncopt.cli.app import Exit, app, print_summary
 from ncopt.model import Cutter, CuttingData, Machine
 from ncopt.reading.parse import parse_text

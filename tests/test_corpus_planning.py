@@ -16,7 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from ncopt.api import Job, rewrite_text
+from ncopt.api import rewrite_text
+from ncopt.model import Job
 from ncopt.runtime.errors import NcoptError, NothingToPlan
 from ncopt.model import Cutter, Machine
 from ncopt.simulate.replay import simulate_program

@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ncopt.api import Job, rewrite_text
+from ncopt.api import rewrite_text
+from ncopt.model import Job
 from ncopt.contacts.geometry import MeshIndex, mesh_from_triangles
 from ncopt.motion.kinematics import KINEMATICS, euler_zxz
 from ncopt.model import Cutter, CuttingData, Machine

@@ -16,7 +16,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
-from ncopt.api import Job, rewrite_text
+from ncopt.api import rewrite_text
+from ncopt.model import Job
 from ncopt.cli.app import Exit, app
 from ncopt.runtime.errors import NcoptError, NcParseError, PlanningError, UsageError
 from ncopt.motion.interp import interpret

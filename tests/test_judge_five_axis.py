@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ncopt.api import Job, rewrite_text
+from ncopt.api import rewrite_text
+from ncopt.model import Job
 from ncopt.model import Cutter, Machine, Motion, PlanOptions
 
 from judge import RS274, canon, feed_in_program_units

@@ -25,7 +25,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ncopt.api import Job, rewrite_text
+from ncopt.api import rewrite_text
+from ncopt.model import Job
 from ncopt.reading.parse import parse_text
 from ncopt.motion.interp import interpret
 from ncopt.runtime.errors import NothingToPlan

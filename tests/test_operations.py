@@ -15,7 +15,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ncopt.api import Job, rewrite_text
+from ncopt.api import rewrite_text
+from ncopt.model import Job
 from ncopt.runtime.errors import MeshError, NothingToPlan, PlanningError
 from ncopt.contacts.geometry import MeshIndex, mesh_from_triangles
 from ncopt.motion.interp import interpret

@@ -15,7 +15,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ncopt.api import Job, rewrite_text
+from ncopt.api import rewrite_text
+from ncopt.model import Job
 from ncopt.runtime.errors import NothingToPlan
 from ncopt.motion.interp import interpret
 from ncopt.model import Machine

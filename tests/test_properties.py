@@ -12,8 +12,9 @@ from hypothesis import Phase, assume, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.lark import from_lark
 
-from ncopt.planning import spindle
-from ncopt.api import Job, rewrite_text
+from ncopt.planning import schedule
+from ncopt.api import rewrite_text
+from ncopt.model import Job
 from ncopt.runtime.errors import NcParseError
 from ncopt.motion.interp import interpret
 from ncopt.model import Cutter, CuttingData, Edit, LineKind, Machine, PlanOptions
@@ -303,7 +304,7 @@ def planning_cases(draw):
     planned = arr(st.floats(0.0, 1.0).map(lambda u: u < 0.75))
     cutting = planned & arr(st.booleans())
     req = arr(st.one_of(st.floats(300.0, 40000.0), st.just(math.inf)))
-    blocks = spindle.Blocks(
+    blocks = schedule.Blocks(
         length_mm=arr(st.floats(0.01, 5.0)), req_rpm=req, cutting=cutting, planned=planned,
         time_s=arr(st.floats(0.001, 2.0)),
         fixed_rpm=arr(st.integers(int(max(300.0, machine.min_rpm)) + 1,
@@ -315,12 +316,12 @@ def planning_cases(draw):
 @given(planning_cases())
 def test_lookahead_keeps_the_spindle_limits(case):
     blocks, machine, cut, teeth, opts = case
-    prof = spindle.lookahead(blocks, machine, cut, teeth, opts)
+    prof = schedule.lookahead(blocks, machine, cut, teeth, opts)
     s = prof.s_rpm
-    k = spindle.k_rpm2_per_mm(machine, cut, teeth)
+    k = schedule.k_rpm2_per_mm(machine, cut, teeth)
     assert prof.k_rpm2_per_mm == pytest.approx(k)
-    s_lo, s_hi = spindle.speed_limits(machine, cut, teeth)
-    cap = spindle.caps(blocks, s_lo, s_hi, lookahead=True)
+    s_lo, s_hi = schedule.speed_limits(machine, cut, teeth)
+    cap = schedule.caps(blocks, s_lo, s_hi, lookahead=True)
     eps = 1e-9
     assert np.all(np.isfinite(s))
     # round-off is compared in S^2, where the passes work, against the largest speed
@@ -358,13 +359,13 @@ def emitted(case, policy):
     blocks, machine, cut, teeth, opts = case
     opts = PlanOptions(fz_tolerance=opts.fz_tolerance, min_rpm_step=opts.min_rpm_step,
                        fz_policy=policy)
-    prof = spindle.lookahead(blocks, machine, cut, teeth, opts)
-    incs = spindle.increments(blocks, machine, prof.k_rpm2_per_mm)
-    s_lo, s_hi = spindle.speed_limits(machine, cut, teeth)
+    prof = schedule.lookahead(blocks, machine, cut, teeth, opts)
+    incs = schedule.increments(blocks, machine, prof.k_rpm2_per_mm)
+    s_lo, s_hi = schedule.speed_limits(machine, cut, teeth)
     cut_b = blocks.cutting & blocks.planned
     lowest = float(prof.cap_rpm[cut_b].min()) if cut_b.any() else 1.0
-    ratio = spindle.max_speed_ratio(opts, cut, teeth, lowest)
-    cmd, low, high = spindle.emit_rpm(prof, blocks, incs, opts, s_lo, ratio, s_hi=s_hi)
+    ratio = schedule.max_speed_ratio(opts, cut, teeth, lowest)
+    cmd, low, high = schedule.emit_rpm(prof, blocks, incs, opts, s_lo, ratio, s_hi=s_hi)
     return blocks, machine, cut, teeth, opts, prof, cmd, low, high
 
 
@@ -388,7 +389,7 @@ def test_emitted_commands_step_and_keep_fz_in_band(case, policy):
     cut_b = blocks.cutting & blocks.planned
     assert np.all(cmd[free] == np.floor(cmd[free]))
     assert np.all(cmd[cut_b] <= prof.s_rpm[cut_b] + 1.0 + 1e-9)  # vc never above target
-    s_lo, s_hi = spindle.speed_limits(machine, cut, teeth)
+    s_lo, s_hi = schedule.speed_limits(machine, cut, teeth)
     assert np.all(cmd[free] >= math.ceil(s_lo - 1e-9))  # the machine's lowest speed
     assert np.all(cmd[free] <= s_hi + 1e-9)
     assert np.all(low <= high)
@@ -400,7 +401,7 @@ def test_emitted_commands_step_and_keep_fz_in_band(case, policy):
             assert abs(cmd[b] - cmd[b - 1]) >= opts.min_rpm_step or onto_floor, \
                 (b, cmd[b - 1], cmd[b])
     # fz stays in its band at the slowest and the fastest real speed of each cutting block
-    f = spindle.feeds(low, high, blocks, cut, teeth, machine.max_feed_mm_min, policy)
+    f = schedule.feeds(low, high, blocks, cut, teeth, machine.max_feed_mm_min, policy)
     tol = opts.fz_tolerance
     top = cut.fz_mm * (1.0 if policy == "below" else 1.0 + tol)
     assert np.all(f[cut_b] / (teeth * low[cut_b]) <= top * (1 + 1e-9))

@@ -19,7 +19,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
-from ncopt.api import Job, rewrite_text
+from ncopt.api import rewrite_text
+from ncopt.model import Job
 from ncopt.cli.app import Exit, app
 from ncopt.reading.dialect import FANUC, LINUXCNC, SINUMERIK, detect
 from ncopt.runtime.errors import NcoptError, NcParseError

@@ -17,7 +17,8 @@ pytest.importorskip("plotly")
 pytest.importorskip("matplotlib")
 
 from ncopt.report import html# noqa: E402
-from ncopt.api import Job, rewrite_text  # noqa: E402
+from ncopt.api import rewrite_text  # noqa: E402
+from ncopt.model import Job
 from ncopt.cli.app import Exit, app  # noqa: E402
 from ncopt.model import Cutter, CuttingData, Machine  # noqa: E402
 

@@ -9,7 +9,8 @@ from dataclasses import replace
 
 import pytest
 
-from ncopt.api import Job, rewrite_text
+from ncopt.api import rewrite_text
+from ncopt.model import Job
 from ncopt.model import Machine
 from ncopt.reading.stamp import STAMP_LINE, read_stamps
 from ncopt.reading.parse import parse_text

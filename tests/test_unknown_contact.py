@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 
 import wallpart
-from ncopt.api import Job, rewrite_text
+from ncopt.api import rewrite_text
+from ncopt.model import Job
 from ncopt.contacts.locate import air_moves, top_of_cut, unknown_contact, up_vector
 from ncopt.contacts.geometry import MeshIndex, load_stl, mesh_contacts
 from ncopt.motion.interp import interpret

@@ -33,7 +33,8 @@ from ncopt.runtime.stdio import (command_faults, count, err, interrupt, read_pro
 if TYPE_CHECKING:
     from rich.console import Console
 
-    from ncopt.api import Job, Summary
+    from ncopt.api import Summary
+    from ncopt.model import Job
 
 
 class Exit(IntEnum):
@@ -297,8 +298,8 @@ def make_job(diameter=None, corner_radius=None, teeth=2, vc=None, fz=None, accel
     else the profiles' default_machine); then ncopt's defaults.  ``spindle_needed``
     False (inspect, which plans nothing): without a spindle given, its figures are NaN.
     """
-    from ncopt.api import Job
-    from ncopt.contacts.locate import Method
+    from ncopt.model import Job
+    from ncopt.model import Method
     from ncopt.reading.controls import CONTROLS, S_CHANGES
     from ncopt.reading.dialect import DECIMAL_POINT_CONVENTIONS
     from ncopt.model import Cutter, CuttingData, Machine, PlanOptions

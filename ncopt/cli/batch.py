@@ -37,7 +37,7 @@ class Task:
 
     source: str
     target: str
-    job: object  # ncopt.api.Job
+    job: object  # ncopt.model.Job
     mesh: str | None = None
     in_place: bool = False
     page: str | None = None  # batch --report index.html: this file's HTML page

@@ -69,7 +69,7 @@ import numpy as np
 
 from ncopt.contacts import cutters
 from ncopt.runtime.errors import MeshError
-from ncopt.motion.interp import row_norms
+from ncopt.motion.modal import row_norms
 from ncopt.runtime.memory import release_freed_memory
 from ncopt.contacts.mesh import (EdgeLengths, Mesh, load_stl, mesh_from_triangles,  # noqa: F401
                         mesh_resolution_mm, spatial_order)

@@ -24,7 +24,7 @@ import numpy as np
 from ncopt.contacts.geometry import MeshIndex, mesh_contacts
 from ncopt.motion.kinematics import KINEMATICS, blend
 from ncopt.runtime.memory import release_freed_memory
-from ncopt.model import Contacts, Cutter, Toolpath
+from ncopt.model import Method, Contacts, Cutter, Toolpath
 from ncopt.contacts.pathnormals import NO_CROSS, ONE_SIDED, ONE_SIDED_TILT_DEG, PathNormals
 from ncopt.contacts.pathnormals import across as across_axis
 from ncopt.contacts.pathnormals import contacts_from_path, path_normals, tilt_from_axis
@@ -274,17 +274,6 @@ def air_moves(tp: Toolpath) -> np.ndarray:
     if tp.tool_axis is not None:  # 5 axes: also along the tilted tool (retract along the axis)
         air |= np.abs(np.einsum("ij,ij->i", d, tp.tool_axis[1:])) > 0.98 * length
     return np.concatenate(([False], air))
-
-
-@dataclass(frozen=True)
-class Method:
-    """How R_eff is found: at the contact point (``contact``, the default) or where the
-    edge meets the remaining material of height ``ap_mm`` (``material``), offset along
-    the surface normal or the tool axis (``along``)."""
-
-    name: str = "contact"
-    ap_mm: float = 0.2
-    along: str = "normal"
 
 
 def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index: MeshIndex | None,

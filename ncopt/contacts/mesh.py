@@ -14,7 +14,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ncopt.runtime.errors import MeshError
-from ncopt.motion.interp import row_norms
+from ncopt.motion.modal import row_norms
 
 _STL_READ_ERRORS = (ValueError, RuntimeError, AssertionError, OSError, IndexError, UnicodeError)
 

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ncopt.motion.interp import row_norms
+from ncopt.motion.modal import row_norms
 from ncopt.contacts.kdtree import cKDTree
 from ncopt.model import Contacts, Cutter
 from ncopt.runtime.threads import available_cpus, map_in_threads

@@ -49,6 +49,7 @@ from ncopt.motion.kinematics import KINEMATICS, VECTOR, fitting, lean, turn_deg,
 from ncopt.model import VECTOR_WORD_CODES
 from ncopt.motion.planes import (G_ALIGN, G_FRAME_OFF, G_FRAME_ON, G_ROTATION, KW_FRAME_OFF,
                      KW_ROTATIONS, KW_SWIVEL, cycle800_args, frames)
+from ncopt.motion.modal import CANNED, G_NON_MODAL_MOVE, HARMLESS_OPAQUE, ffill
 
 ROTARY = "ABC"
 Z = np.array([0.0, 0.0, 1.0])
@@ -132,7 +133,6 @@ class _Reasons:
 
 
 def _ffill(values, initial=np.nan):
-    from ncopt.motion.interp import ffill
 
     return ffill(values, initial)
 
@@ -383,7 +383,6 @@ def _losing_lines(prog, lines, executed, r):
     """(n,) bool: the lines after which no rotary position is known (G28/G30 without
     axes, a call, G53.1, a construct ncopt does not interpret), and (n,) int16 the
     reason code of each."""
-    from ncopt.motion.interp import HARMLESS_OPAQUE
 
     n = lines.n
     calls = lines.has_g(G_CALLS) | lines.has_m(M_CALLS)
@@ -422,7 +421,6 @@ def _rotary_positions(prog, lines, modal, executed, r):
     again, or never stated: ncopt takes no axis at 0), rotary_move (n,) bool and
     unknown (n, 3) int16: per axis, the reason code of a NaN.
     """
-    from ncopt.motion.interp import G_NON_MODAL_MOVE
 
     n = lines.n
     g53 = lines.has_g({530})  # a machine position: taken as the rotary position (no offsets)
@@ -608,7 +606,6 @@ def _lean_in_force(lines, modal, executed) -> tuple[np.ndarray, np.ndarray]:
     """(n,) the G43.5 Q in force after each line (degrees; 0: none; NaN: a Q written on
     another block under G43.4/G43.5 makes it unknown until the group changes), and (n,)
     bool those other blocks (a canned cycle's Q is its own)."""
-    from ncopt.motion.interp import CANNED
 
     length = np.where(executed, lines.g_group(G_LENGTH_GROUP), np.nan)
     g435 = length == G_VECTOR_TCP

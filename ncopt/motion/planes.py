@@ -20,6 +20,7 @@ import re
 import numpy as np
 
 from ncopt.motion.kinematics import euler_zxz
+from ncopt.motion.modal import G_NON_MODAL_MOVE, ffill
 
 G_FRAME = 682  # G68.2, the tilted plane ncopt reads (with G53.1)
 G_FRAME_ON = {682, 683, 684, 2540, 2680}  # G68.2-G68.4, Haas DWO G254 and G268
@@ -39,7 +40,6 @@ _NUMBER = re.compile(r"\s*[+-]?(?:\d+\.?\d*|\.\d+)\s*$")
 
 
 def _ffill(values, initial=np.nan):
-    from ncopt.motion.interp import ffill
 
     return ffill(values, initial)
 
@@ -125,7 +125,6 @@ def _aligned(lines, executed, state, rotary) -> np.ndarray:
 
 def _restated(lines, modal, executed, state) -> np.ndarray:
     """(n,) bool: X, Y and Z were each given absolutely since the plane changed."""
-    from ncopt.motion.interp import G_NON_MODAL_MOVE
 
     idx = np.arange(lines.n)
     change = np.concatenate(([False], state[1:] != state[:-1]))

@@ -11,7 +11,8 @@ import numpy as np
 
 from ncopt.reading.dialect import (HEIDENHAIN, SINUMERIK, apply_decimal_point,
                       check_convention_applies, decimal_point_issue, detect)
-from ncopt.motion.interp import INCH_HEADER, interpret, tcp_for
+from ncopt.motion.interp import interpret, tcp_for
+from ncopt.motion.modal import INCH_HEADER
 from ncopt.motion.kinematics import tilt_deg
 from ncopt.motion.times import feed_minutes
 from ncopt.model import LineKind, Motion, Program
@@ -83,7 +84,7 @@ def inspect_text(text: str, path: str = "<input>", *, dialect: str | None = None
     :data:`ncopt.reading.dialect.DECIMAL_POINT_CONVENTIONS`).  A value that depends on
     an unknown convention is reported among the warnings, and the operations are
     then not judged (rewrite refuses such a program).  ``job``: an
-    :class:`ncopt.api.Job` whose cutter, cutting data, ``tool`` and ``operations``
+    :class:`ncopt.model.Job` whose cutter, cutting data, ``tool`` and ``operations``
     the judgement follows (None: the cutters of the program's tool comments).
     """
     prog = parse_text(text, path, dialect=dialect)
@@ -139,7 +140,7 @@ def judge_operations(prog: Program, tp, job=None,
     from ncopt.reading.stamp import read_stamps
 
     if job is None:
-        from ncopt.api import Job
+        from ncopt.model import Job
         from ncopt.model import Machine
 
         job = Job(machine=Machine(float("nan"), float("nan")))  # judging needs no spindle

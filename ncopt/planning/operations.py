@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ncopt.motion.interp import row_norms
+from ncopt.motion.modal import row_norms
 from ncopt.contacts.kdtree import cKDTree
 from ncopt.model import Cutter, LineKind, Motion, Program, Toolpath
 from ncopt.planning.toolcomments import read_comment

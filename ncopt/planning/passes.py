@@ -26,7 +26,7 @@ The speed of pass p is the largest S_p with
   when the pass starts.
 
 These are difference constraints on a chain, so the largest solution is the
-two-way running minimum of :func:`ncopt.planning.spindle._two_way_min` with increment
+two-way running minimum of :func:`ncopt.planning.schedule._two_way_min` with increment
 0 inside a pass and a*T on the blocks between passes.  F of every block of a
 pass is fz z S_p, so fz holds exactly (but for the F word's rounding down).
 """
@@ -38,14 +38,14 @@ from dataclasses import replace
 
 import numpy as np
 
-from ncopt.planning import spindle
+from ncopt.planning import schedule
 from ncopt.model import CuttingData, Machine, PlanOptions
 
 # per gap, 1 RPM of the spindle's reach is kept for the rounding of S to integers
 _ROUNDING_RPM = 1.0
 
 
-def pass_ids(blocks: spindle.Blocks, separates: np.ndarray | None = None) -> np.ndarray:
+def pass_ids(blocks: schedule.Blocks, separates: np.ndarray | None = None) -> np.ndarray:
     """(nb,) int: the pass of each block, numbered from 0 in program order; -1 between passes.
 
     ``separates`` : (nb,) bool or None (every gap separates): blocks that surely leave the
@@ -83,26 +83,26 @@ def _bridged(cut: np.ndarray, separates: np.ndarray) -> np.ndarray:
     return np.cumsum(out[:-1]) > 0
 
 
-def profile(blocks: spindle.Blocks, machine: Machine, cut: CuttingData, teeth: int,
-            pid: np.ndarray) -> spindle.Profile:
+def profile(blocks: schedule.Blocks, machine: Machine, cut: CuttingData, teeth: int,
+            pid: np.ndarray) -> schedule.Profile:
     """The largest per-block speed that is constant over each pass (RPM, real-valued)."""
-    s_lo, s_hi = spindle.speed_limits(machine, cut, teeth)
+    s_lo, s_hi = schedule.speed_limits(machine, cut, teeth)
     in_pass = pid >= 0
     as_passes = replace(blocks, cutting=in_pass)
-    cap = spindle.caps(as_passes, s_lo, s_hi, lookahead=False)
-    reach = machine.accel_rpm_s * blocks.time_s * (1.0 - spindle.PLAN_MARGIN) - _ROUNDING_RPM
+    cap = schedule.caps(as_passes, s_lo, s_hi, lookahead=False)
+    reach = machine.accel_rpm_s * blocks.time_s * (1.0 - schedule.PLAN_MARGIN) - _ROUNDING_RPM
     inc = np.where(in_pass, 0.0, np.maximum(reach, 0.0))
     inc[blocks.spindle_start] = np.inf  # the control brings a starting spindle to speed
-    s = spindle._two_way_min(cap, inc)
+    s = schedule._two_way_min(cap, inc)
     s = np.maximum(s, np.minimum(s_lo, cap))
     free = np.full(inc.shape, np.inf)
-    s = spindle._after_fixed(s, as_passes, free, np.where(in_pass, 0.0, inc), free,
+    s = schedule._after_fixed(s, as_passes, free, np.where(in_pass, 0.0, inc), free,
                              machine.max_rpm)
-    return spindle.Profile(s_rpm=s, cap_rpm=cap, k_rpm2_per_mm=spindle.k_rpm2_per_mm(
+    return schedule.Profile(s_rpm=s, cap_rpm=cap, k_rpm2_per_mm=schedule.k_rpm2_per_mm(
         machine, cut, teeth))
 
 
-def pass_speeds(prof: spindle.Profile, blocks: spindle.Blocks, pid: np.ndarray,
+def pass_speeds(prof: schedule.Profile, blocks: schedule.Blocks, pid: np.ndarray,
                 machine: Machine, opts: PlanOptions, s_lo: float, s_hi: float) -> np.ndarray:
     """(n_passes,) integer S of each pass.
 
@@ -115,7 +115,7 @@ def pass_speeds(prof: spindle.Profile, blocks: spindle.Blocks, pid: np.ndarray,
         return np.zeros(0)
     in_pass = pid >= 0
     lowest = np.full(n, np.inf)
-    np.minimum.at(lowest, pid[in_pass], spindle._snapped(prof.s_rpm[in_pass]))
+    np.minimum.at(lowest, pid[in_pass], schedule._snapped(prof.s_rpm[in_pass]))
     lo_int = math.ceil(s_lo)
     top = max(math.floor(s_hi), lo_int) if math.isfinite(s_hi) else math.inf
     target = np.clip(np.floor(lowest), lo_int, top)
@@ -132,12 +132,12 @@ def pass_speeds(prof: spindle.Profile, blocks: spindle.Blocks, pid: np.ndarray,
     return np.array(out, dtype=np.float64)
 
 
-def _gaps(blocks: spindle.Blocks, pid: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+def _gaps(blocks: schedule.Blocks, pid: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Per pass: the time of the blocks between it and the previous pass (s), and
     whether the spindle restarts or the program's own S comes in between (then the
     pass does not start from the previous pass's speed)."""
     in_pass = pid >= 0
-    owner = spindle.ffill(np.where(in_pass, pid + 1.0, np.nan), 0.0).astype(np.int64)
+    owner = schedule.ffill(np.where(in_pass, pid + 1.0, np.nan), 0.0).astype(np.int64)
     gap = ~in_pass & (owner < n)  # blocks between pass owner-1 and pass owner
     gap_time = np.bincount(owner[gap], weights=blocks.time_s[gap], minlength=n + 1)[:n]
     breaks = gap & (blocks.spindle_start | ~blocks.planned)
@@ -149,7 +149,7 @@ def _gaps(blocks: spindle.Blocks, pid: np.ndarray, n: int) -> tuple[np.ndarray, 
     return gap_time, reset
 
 
-def commands(speeds: np.ndarray, blocks: spindle.Blocks, pid: np.ndarray) -> spindle.Emitted:
+def commands(speeds: np.ndarray, blocks: schedule.Blocks, pid: np.ndarray) -> schedule.Emitted:
     """Per block: S commanded and the lowest and highest real speed.
 
     A pass's blocks run at its speed (the spindle is there when the pass
@@ -162,25 +162,25 @@ def commands(speeds: np.ndarray, blocks: spindle.Blocks, pid: np.ndarray) -> spi
     value[in_pass] = speeds[pid[in_pass]]
     fixed = ~blocks.planned
     value[fixed] = blocks.fixed_rpm[fixed]
-    cmd = spindle.ffill(spindle._bfill(value))
+    cmd = schedule.ffill(schedule._bfill(value))
     cmd = np.where(np.isnan(cmd), 0.0, cmd)
     before = np.concatenate(([cmd[0]], cmd[:-1]))
     low = np.where(in_pass, cmd, np.minimum(before, cmd))
     high = np.where(in_pass, cmd, np.maximum(before, cmd))
-    return spindle.Emitted(cmd, low, high, 0)
+    return schedule.Emitted(cmd, low, high, 0)
 
 
-def plan(blocks: spindle.Blocks, machine: Machine, cut: CuttingData, teeth: int,
+def plan(blocks: schedule.Blocks, machine: Machine, cut: CuttingData, teeth: int,
          opts: PlanOptions, separates: np.ndarray | None = None
-         ) -> tuple[spindle.Emitted, np.ndarray, spindle.Profile]:
-    """One S per pass -> F per block (mm/min): as :func:`ncopt.planning.spindle.plan` returns.
+         ) -> tuple[schedule.Emitted, np.ndarray, schedule.Profile]:
+    """One S per pass -> F per block (mm/min): as :func:`ncopt.planning.schedule.plan` returns.
 
     ``separates``: see :func:`pass_ids`.
     """
     pid = pass_ids(blocks, separates)
-    s_lo, s_hi = spindle.speed_limits(machine, cut, teeth)
+    s_lo, s_hi = schedule.speed_limits(machine, cut, teeth)
     prof = profile(blocks, machine, cut, teeth, pid)
     em = commands(pass_speeds(prof, blocks, pid, machine, opts, s_lo, s_hi), blocks, pid)
-    f = spindle.feeds(em.s_low_rpm, em.s_high_rpm, blocks, cut, teeth, machine.max_feed_mm_min,
+    f = schedule.feeds(em.s_low_rpm, em.s_high_rpm, blocks, cut, teeth, machine.max_feed_mm_min,
                       "below")
     return em, f, prof

@@ -22,12 +22,14 @@ import numpy as np
 
 from ncopt.planning import operations
 from ncopt.planning import passes
-from ncopt.planning import spindle
+from ncopt.planning import schedule
 from ncopt.planning import regions
 from ncopt.reading.controls import ANYWHERE, BETWEEN_PASSES
-from ncopt.contacts.locate import Method, Sampled, contacts_for
+from ncopt.contacts.locate import Sampled, contacts_for
+from ncopt.model import Method
 from ncopt.runtime.errors import MeshError, NothingToPlan, PlanningError, UsageError
-from ncopt.motion.interp import MM_PER_INCH, row_norms
+from ncopt.model import MM_PER_INCH
+from ncopt.motion.modal import row_norms
 from ncopt.model import Cutter, CuttingData, Machine, Motion, PlanOptions, Program, Toolpath
 from ncopt.planning.operations import CANNED, CLEARING, NO_CUT, ROUGH_LEVELS, Operation
 from ncopt.planning.regions import Scope
@@ -62,7 +64,7 @@ class OpPlan:
     cutting: CuttingData
     source: str
     window: tuple[int, int]
-    blocks: spindle.Blocks
+    blocks: schedule.Blocks
     s_cmd_rpm: np.ndarray
     f_mm_min: np.ndarray
     reduced: np.ndarray
@@ -85,7 +87,7 @@ class ToolView:
     tool: int
     cutter: Cutter
     sampled: Sampled
-    base: spindle.Blocks  # req_rpm per 1 m/min of vc; cutting only on its planned ops
+    base: schedule.Blocks  # req_rpm per 1 m/min of vc; cutting only on its planned ops
 
 
 @dataclass(frozen=True)
@@ -154,7 +156,7 @@ def check_fit(fit: MeshFit | None, tool: int, tol_mm: float, path: str) -> None:
         "coordinates; for a program that leaves an allowance give --stock MM", path, where or None)
 
 
-def tool_view(tp: Toolpath, idx: spindle.BlockIndex, tool: int, cutter: Cutter,
+def tool_view(tp: Toolpath, idx: schedule.BlockIndex, tool: int, cutter: Cutter,
               selected: np.ndarray, mesh_index, opts: PlanOptions, tol_mm: float,
               method: Method, rapid_mm_min: float, stock_mm: float = 0.0,
               r_floor_mm: float = 0.0) -> ToolView:
@@ -163,7 +165,7 @@ def tool_view(tp: Toolpath, idx: spindle.BlockIndex, tool: int, cutter: Cutter,
     sampled = contacts_for(tp, cutter, selected, mesh_index, opts.sample_mm, tol_mm, method,
                            stock_mm, r_floor_mm=r_floor_mm)
     c = sampled.contacts
-    base = spindle.blocks_from_contacts(
+    base = schedule.blocks_from_contacts(
         idx, tp.seg_len_mm, tp.motion, tp.feed_mm_min, tp.known, tp.spindle_on,
         tp.spindle_rpm, required_rpm(c.r_eff_mm, 1.0), c.cutting, sampled.point, selected,
         rapid_mm_min)
@@ -171,7 +173,7 @@ def tool_view(tp: Toolpath, idx: spindle.BlockIndex, tool: int, cutter: Cutter,
 
 
 def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, source: str,
-                   tp: Toolpath, idx: spindle.BlockIndex, point_op: np.ndarray, scope: Scope,
+                   tp: Toolpath, idx: schedule.BlockIndex, point_op: np.ndarray, scope: Scope,
                    cmd_rpm: np.ndarray, machine: Machine, opts: PlanOptions,
                    path: str, intent: tuple | None = None) -> OpPlan:
     """Plan operation ``k``; ``cmd_rpm`` (nb,) holds the S commanded per block so far
@@ -200,7 +202,7 @@ def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, sour
                          machine, cut, view.cutter.teeth, opts)
     planned &= ~coarse
     cutting = base.cutting[win] & planned
-    blocks = spindle.Blocks(
+    blocks = schedule.Blocks(
         length_mm=base.length_mm[win], req_rpm=base.req_rpm[win] * cut.vc_m_min,
         cutting=cutting, planned=planned, time_s=base.time_s[win],
         fixed_rpm=cmd_rpm[win].copy(), spindle_start=base.spindle_start[win],
@@ -249,7 +251,7 @@ def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, sour
     s_cmd = _back_at_fixed(np.where(ext(planned, False), emitted.s_cmd_rpm,
                                     ext(cmd_rpm[win], tail or 0.0)),
                            ext(planned, False), ext(mine, False), ext(blocks.running, True))[:n]
-    emitted = spindle.Emitted(emitted.s_cmd_rpm[:n], emitted.s_low_rpm[:n],
+    emitted = schedule.Emitted(emitted.s_cmd_rpm[:n], emitted.s_low_rpm[:n],
                               emitted.s_high_rpm[:n], emitted.close_s_words)
     cmd_rpm[win] = s_cmd
     reduced = mine & planned & (off_feed | plunge | ~blocks.cutting)
@@ -306,7 +308,7 @@ def _ext(a, tail, value):
 def _plan_blocks(blocks, machine, cut, teeth, opts, sep):
     if opts.s_changes == BETWEEN_PASSES:
         return passes.plan(blocks, machine, cut, teeth, opts, sep)
-    return spindle.plan(blocks, machine, cut, teeth, opts)
+    return schedule.plan(blocks, machine, cut, teeth, opts)
 
 
 def _separating(tp: Toolpath, fp: np.ndarray, blocks, sampled) -> np.ndarray | None:
@@ -346,7 +348,7 @@ def _other_mode_time(other_plan, blocks, n, feeds, opts) -> float:
                       opts.f_quantum_mm_min)
 
 
-def _fixed_line_after(tp: Toolpath, idx: spindle.BlockIndex, scope: Scope, last: int):
+def _fixed_line_after(tp: Toolpath, idx: schedule.BlockIndex, scope: Scope, last: int):
     """The program's S (RPM) at the first fixed line after block ``last`` that comes before
     the next block (a subprogram call, a canned cycle): it must be in force there.  None
     where the next block comes first, or the S there is not known."""
@@ -362,13 +364,13 @@ def _fixed_line_after(tp: Toolpath, idx: spindle.BlockIndex, scope: Scope, last:
     return s if known and s > 0 else None
 
 
-def _with_tail(blocks: spindle.Blocks, tail_rpm: float | None) -> spindle.Blocks:
+def _with_tail(blocks: schedule.Blocks, tail_rpm: float | None) -> schedule.Blocks:
     """The blocks and, after them, an instant that keeps ``tail_rpm`` (a fixed line that
     does not move: the spindle must be at the program's speed when it comes)."""
     if tail_rpm is None:
         return blocks
     add = lambda a, v: np.append(a, v)  # noqa: E731
-    return spindle.Blocks(
+    return schedule.Blocks(
         length_mm=add(blocks.length_mm, 0.0), req_rpm=add(blocks.req_rpm, np.inf),
         cutting=add(blocks.cutting, False), planned=add(blocks.planned, False),
         time_s=add(blocks.time_s, 0.0), fixed_rpm=add(blocks.fixed_rpm, tail_rpm),
@@ -380,11 +382,11 @@ def _with_tail(blocks: spindle.Blocks, tail_rpm: float | None) -> spindle.Blocks
 def _too_coarse(req_rpm, cutting, machine, cut, teeth, opts) -> np.ndarray:
     """Cutting blocks whose feed is so low that the resolution of the program's F words
     cannot hold fz within its band (F1. at a few mm/min): they keep the program's S and
-    F.  The band needs F above q / tol (``spindle.max_speed_ratio``), with a margin."""
+    F.  The band needs F above q / tol (``schedule.max_speed_ratio``), with a margin."""
     q = opts.f_quantum_mm_min
     if not q > 0:
         return np.zeros(cutting.shape, dtype=bool)
-    s_lo, s_hi = spindle.speed_limits(machine, cut, teeth)
+    s_lo, s_hi = schedule.speed_limits(machine, cut, teeth)
     f_low = cut.fz_mm * teeth * np.clip(req_rpm, s_lo, s_hi)
     return cutting & (f_low <= COARSE_MARGIN * q / opts.fz_tolerance)
 
@@ -426,14 +428,14 @@ def _feed_intent(blocks, feed, s_prog, mine, machine, cut, cutter, opts, intent,
     if spindle is not None:  # the S and F written were planned for the stamped spindle
         machine = replace(machine, accel_rad_s2=spindle[0], max_rpm=spindle[1])
     fixed = replace(blocks, planned=np.zeros_like(blocks.planned))
-    k = spindle.k_rpm2_per_mm(machine, cut, cutter.teeth)
-    em = spindle.emit_rpm(spindle.Profile(fixed.fixed_rpm, fixed.fixed_rpm, k), fixed,
-                          spindle.increments(fixed, machine, k), opts, machine.min_rpm,
+    k = schedule.k_rpm2_per_mm(machine, cut, cutter.teeth)
+    em = schedule.emit_rpm(schedule.Profile(fixed.fixed_rpm, fixed.fixed_rpm, k), fixed,
+                          schedule.increments(fixed, machine, k), opts, machine.min_rpm,
                           float("inf"))
     s_ref = np.where(em.s_low_rpm > 0, em.s_low_rpm, s_prog)
     as_cut = replace(blocks, planned=np.ones_like(blocks.planned))
     q = max(opts.f_quantum_mm_min, 1e-9)
-    expected = spindle.feeds(em.s_low_rpm, em.s_high_rpm, as_cut, cut, cutter.teeth,
+    expected = schedule.feeds(em.s_low_rpm, em.s_high_rpm, as_cut, cut, cutter.teeth,
                              machine.max_feed_mm_min, opts.fz_policy)
     expected = np.floor(expected / q + 1e-6) * q
     off = np.where(blocks.cutting, np.abs(feed - expected) > 1.5 * q,
@@ -463,7 +465,7 @@ def _cutting_feed(feed: np.ndarray, length: np.ndarray, mine: np.ndarray,
 def _over_target(blocks, emitted, machine, cut, cutter) -> tuple:
     """Cutting blocks where the real spindle stays above the requirement (after the
     program's own S in a block ncopt could not plan): (count, worst vc excess %)."""
-    s_lo, s_hi = spindle.speed_limits(machine, cut, cutter.teeth)
+    s_lo, s_hi = schedule.speed_limits(machine, cut, cutter.teeth)
     req = np.clip(blocks.req_rpm, s_lo, s_hi)
     c = blocks.cutting & blocks.planned
     excess = emitted.s_high_rpm[c] / req[c] - 1.0
@@ -583,7 +585,7 @@ def choose_cutter(job, table: dict, tool: int, n_tools: int, inch: bool,
                       f"line {info.line}: ({info.text.strip()}); {said}")
 
 
-def plan_program(prog: Program, tp: Toolpath, idx: spindle.BlockIndex, job,
+def plan_program(prog: Program, tp: Toolpath, idx: schedule.BlockIndex, job,
                  mesh_index) -> Work:
     """Operations, their scope and their plans; NothingToPlan where none is planned."""
     stamps = read_stamps(prog)
@@ -636,7 +638,7 @@ def plan_program(prog: Program, tp: Toolpath, idx: spindle.BlockIndex, job,
 def _r_floor_mm(job, ops, cuts, tool: int, cutter: Cutter) -> float:
     """The smallest R_eff at which an operation of ``tool`` asks for less than S_max."""
     floors = [1000.0 * cut.vc_m_min
-              / (2.0 * np.pi * spindle.speed_limits(job.machine, cut, cutter.teeth)[1])
+              / (2.0 * np.pi * schedule.speed_limits(job.machine, cut, cutter.teeth)[1])
               for k, (cut, _) in cuts.items() if ops[k].tool == tool]
     return min(floors, default=0.0)
 

@@ -22,7 +22,7 @@ import numpy as np
 
 from ncopt.model import LineKind, Motion, Program, Toolpath
 from ncopt.motion.orientation import tcp_switches
-from ncopt.planning.spindle import BlockIndex
+from ncopt.planning.schedule import BlockIndex
 
 S_CODE, F_CODE = ord("S"), ord("F")
 

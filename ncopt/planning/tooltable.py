@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ncopt.model import Cutter, LineKind, Program
+from ncopt.model import MM_PER_INCH, Cutter, LineKind, Program
 from ncopt.reading.stampline import STAMP_BODY
 from ncopt.planning.toolcomments import (BALL, BULL, BULL_NO_RADIUS, FLAT, OTHER, UNKNOWN, Fact,
                            may_describe_a_tool, read_comment, shape)
@@ -48,7 +48,6 @@ __all__ = ["BALL", "BULL", "BULL_NO_RADIUS", "FLAT", "OTHER", "UNKNOWN", "UNNUMB
            "ToolInfo", "parse_tool_comment", "tool_comments", "tool_table", "cutter_for"]
 
 UNNUMBERED = -1  # "( Cutter is assumed to be a 10mm ball nose )": no T number given
-MM_PER_INCH = 25.4
 
 
 @dataclass(frozen=True)

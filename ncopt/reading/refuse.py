@@ -44,7 +44,7 @@ import re
 import numpy as np
 
 from ncopt.runtime.errors import NcParseError
-from ncopt.model import LineKind, Program
+from ncopt.model import MM_PER_INCH, LineKind, Program
 
 CONTEXT_CHARS = 120  # the caret context shows at most this much of a line
 UTF8_BOM = b"\xef\xbb\xbf"
@@ -274,7 +274,6 @@ def _word_text(prog: Program, k: int) -> str:
 # The interpreter calls these with its per-line table of values (``lines.value(c)``,
 # ``lines.present(c)``: (n_lines,) arrays, expressions evaluated).
 
-MM_PER_INCH = 25.4
 # below this radius LinuxCNC refuses an arc as "Zero-radius arc" (rs274: 0.00005 inch
 # passes, 0.00004 fails; 0.002 mm passes, 0.0011 mm fails)
 MIN_ARC_RADIUS_MM = 0.00005 * MM_PER_INCH

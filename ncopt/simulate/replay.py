@@ -38,7 +38,7 @@ Shares of the cut length weight each sample by the path length it stands for
 (trapezoid rule).
 
 Targets default to the program's own S and F at the nominal diameter
-(``ncopt.api.nominal_cutting_data``).  For a rewritten program pass the
+(``ncopt.planning.plans.nominal_cutting_data``).  For a rewritten program pass the
 original's targets in ``Job.cutting``: a rewrite's S words are planned
 speeds, not the nominal one.
 """
@@ -51,14 +51,18 @@ from pathlib import Path
 
 import numpy as np
 
-from ncopt.api import Job, nominal_cutting_data, read_text, tcp_of
+from ncopt.reading.read import read_text
+from ncopt.model import Job
 from ncopt.reading.dialect import detect
 from ncopt.reading.stamp import read_stamps, stamped_line
 from ncopt.contacts.locate import (MAX_SAMPLES_PER_MOVE, centre_offsets, path_contacts_at_samples,
                        sample_axes, sample_points, samples_per_move)
 from ncopt.runtime.errors import NcoptError, UsageError
 from ncopt.contacts.geometry import MeshIndex, contacts_from_mesh, load_stl
-from ncopt.motion.interp import MM_PER_INCH, ffill, interpret
+from ncopt.motion.interp import interpret, tcp_of
+from ncopt.planning.plans import nominal_cutting_data
+from ncopt.model import MM_PER_INCH
+from ncopt.motion.modal import ffill
 from ncopt.motion.kinematics import tilt_deg
 from ncopt.model import Contacts, Cutter, CuttingData, Machine, Motion, Program, Toolpath
 from ncopt.planning.tooltable import BALL, BULL, cutter_for, tool_table
@@ -246,7 +250,7 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
     job : Job
         Machine, cutter (None: from the program's tool comments), targets
         (``job.cutting``; None: the program's own S and F at the nominal
-        diameter, ``ncopt.api.nominal_cutting_data``) and ``job.tool``, the one
+        diameter, ``ncopt.planning.plans.nominal_cutting_data``) and ``job.tool``, the one
         tool evaluated when the program cuts with several.
     mesh_index : MeshIndex or None
         The part; needed unless ``contacts`` are given.
@@ -292,7 +296,7 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
     if job.cutting is None and stamp is not None:  # rewritten by ncopt: its nominal data
         cut = stamp.cutting
     else:
-        cut = job.cutting or nominal_cutting_data(tp, planned, job.cutter, path)
+        cut = job.cutting or nominal_cutting_data(tp, np.flatnonzero(planned), job.cutter, path)
     if mesh_index is None and contacts is None:  # contacts from the toolpath's own shape
         contacts = path_contacts_at_samples(tp, job.cutter, planned, sample_mm,
                                             _normal_groups(prog, tp))

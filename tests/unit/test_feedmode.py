@@ -8,7 +8,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from ncopt.api import Job, rewrite_text
+from ncopt.api import rewrite_text
+from ncopt.model import Job
 from ncopt.motion.feedmode import inverse_time_words, tip_feed_mm_min
 from ncopt.motion.interp import interpret
 from ncopt.model import Cutter, CuttingData, Machine

@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from ncopt.api import Job
+from ncopt.model import Job
 from ncopt.contacts.geometry import MeshIndex, mesh_from_triangles
 from ncopt.planning.inspection import inspect_text, render_inspection
 from ncopt.model import Cutter, CuttingData, Machine

@@ -10,7 +10,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from ncopt.runtime.errors import NcoptError
-from ncopt.motion.interp import StartState, ffill, interpret
+from ncopt.motion.interp import StartState, interpret
+from ncopt.motion.modal import ffill
 from ncopt.model import Motion
 from ncopt.reading.parse import parse_text
 

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ncopt.api import Job, rewrite_text
+from ncopt.api import rewrite_text
+from ncopt.model import Job
 from ncopt.runtime.errors import NcoptError, NothingToPlan
 from ncopt.motion.interp import interpret
 from ncopt.model import Cutter, CuttingData, Machine

@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from ncopt.planning import passes
-from ncopt.planning import spindle
-from ncopt.api import Job, rewrite_text
+from ncopt.planning import schedule
+from ncopt.api import rewrite_text
+from ncopt.model import Job
 from ncopt.model import Cutter, CuttingData, Machine, PlanOptions
 from ncopt.reading.parse import parse_text
 from ncopt.simulate.replay import simulate_program
@@ -29,7 +30,7 @@ def blocks(kinds, req, time_s, length=1.0, planned=None, start=None):
     """Blocks from a string: 'c' a cutting block, '.' a non-cutting one."""
     cutting = np.array([k == "c" for k in kinds])
     n = cutting.size
-    return spindle.Blocks(
+    return schedule.Blocks(
         length_mm=np.broadcast_to(np.asarray(length, float), (n,)).copy(),
         req_rpm=np.where(cutting, np.asarray(req, float), np.inf),
         cutting=cutting, planned=np.ones(n, bool) if planned is None else planned,
@@ -39,7 +40,7 @@ def blocks(kinds, req, time_s, length=1.0, planned=None, start=None):
 
 def reach(time_s):
     """What one non-cutting block lets the spindle change, with the planner's reserve."""
-    return max(A_RPM_S * time_s * (1 - spindle.PLAN_MARGIN) - passes._ROUNDING_RPM, 0.0)
+    return max(A_RPM_S * time_s * (1 - schedule.PLAN_MARGIN) - passes._ROUNDING_RPM, 0.0)
 
 
 def test_passes_are_runs_of_cutting_blocks_that_move():
@@ -88,7 +89,7 @@ def test_each_pass_runs_at_the_highest_feasible_speed(caps, gaps):
             req += [0.0, 0.0]
             time_s += [gaps[i] / 2] * 2
     b = blocks(kinds, req, time_s)
-    em, f, _ = spindle.plan(b, MACHINE, CUT, 2, BETWEEN)
+    em, f, _ = passes.plan(b, MACHINE, CUT, 2, BETWEEN)
     pid = passes.pass_ids(b)
     got = [em.s_cmd_rpm[pid == p][0] for p in range(len(caps))]
     gap_reach = [2 * reach(g / 2) for g in gaps]
@@ -112,7 +113,7 @@ def test_each_pass_runs_at_the_highest_feasible_speed(caps, gaps):
 def test_s_changes_only_on_the_blocks_between_passes():
     b = blocks("ccc..ccc..ccc", req=[3000] * 3 + [0, 0] + [9000] * 3 + [0, 0] + [2000] * 3,
                time_s=[0.1] * 3 + [1, 1] + [0.1] * 3 + [1, 1] + [0.1] * 3)
-    em, _, _ = spindle.plan(b, MACHINE, CUT, 2, BETWEEN)
+    em, _, _ = passes.plan(b, MACHINE, CUT, 2, BETWEEN)
     s = em.s_cmd_rpm
     changed = np.flatnonzero(s[1:] != s[:-1]) + 1
     assert changed.size == 2
@@ -123,7 +124,7 @@ def test_s_changes_only_on_the_blocks_between_passes():
 def test_a_rise_smaller_than_the_step_keeps_the_speed():
     b = blocks("ccc..ccc", req=[3000] * 3 + [0, 0] + [3005] * 3, time_s=[0.1] * 3 + [1, 1] +
                [0.1] * 3)
-    em, _, _ = spindle.plan(b, MACHINE, CUT, 2, BETWEEN)
+    em, _, _ = passes.plan(b, MACHINE, CUT, 2, BETWEEN)
     assert np.all(em.s_cmd_rpm == 3000)
 
 
@@ -131,7 +132,7 @@ def test_a_spindle_start_between_passes_frees_the_next_pass():
     start = np.zeros(8, bool)
     start[3] = True  # the spindle stops and starts again between the passes (tool change)
     b = blocks("ccc..ccc", req=[1000] * 3 + [0, 0] + [11000] * 3, time_s=[0.1] * 8, start=start)
-    em, _, _ = spindle.plan(b, MACHINE, CUT, 2, BETWEEN)
+    em, _, _ = passes.plan(b, MACHINE, CUT, 2, BETWEEN)
     assert em.s_cmd_rpm[-1] == 11000  # no ramp from 1000 needed: the control brings it up
 
 

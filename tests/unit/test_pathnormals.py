@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ncopt.api import Job, rewrite_text
+from ncopt.api import rewrite_text
+from ncopt.model import Job
 from ncopt.contacts.geometry import MeshIndex, load_stl
 from ncopt.motion.interp import interpret
 from ncopt.model import Cutter, Machine

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
 import ncopt.contacts.pathnormals as pn
-from ncopt.motion.interp import row_norms
+from ncopt.motion.modal import row_norms
 from ncopt.model import Cutter
 from ncopt.contacts.cutters import r_eff_mm
 

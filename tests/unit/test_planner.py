@@ -1,4 +1,4 @@
-"""ncopt.planning.spindle: closed-form profiles, the forward planner's overshoot, _two_way_min.
+"""ncopt.planning.schedule: closed-form profiles, the forward planner's overshoot, _two_way_min.
 
 The spindle limit of METHOD.md in the planner's per-block form: during cutting block b the
 spindle goes from S_(b-1) to S_b with |S_b^2 - S_(b-1)^2| <= K L_b,
@@ -14,7 +14,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ncopt.planning import spindle
+from ncopt.planning import schedule
 from ncopt.model import CuttingData, Machine, PlanOptions
 
 A_RPM_S = 1000.0
@@ -24,7 +24,7 @@ TEETH = 2
 K = 2 * 60 * A_RPM_S / (CUT.fz_mm * TEETH)  # 600 000 RPM^2 per mm
 # the look-ahead keeps a documented share of the spindle's rate in reserve, so that the
 # integer S words can follow its profile: its closed forms use the rest
-KEEP = 1.0 - spindle.PLAN_MARGIN
+KEEP = 1.0 - schedule.PLAN_MARGIN
 K_LOOK = K * KEEP
 LOOSE = PlanOptions(fz_tolerance=0.5)  # a per-block speed ratio of 3: never the binding limit
 
@@ -33,21 +33,21 @@ def blocks(req, length=1.0, cutting=True, planned=True, time_s=1.0, fixed=0.0):
     req = np.asarray(req, dtype=float)
     n = req.shape[0]
     full = lambda v, dtype=float: np.broadcast_to(np.asarray(v, dtype), (n,)).copy()  # noqa
-    return spindle.Blocks(length_mm=full(length), req_rpm=req, cutting=full(cutting, bool),
+    return schedule.Blocks(length_mm=full(length), req_rpm=req, cutting=full(cutting, bool),
                           planned=full(planned, bool), time_s=full(time_s),
                           fixed_rpm=full(fixed))
 
 
-def plan(b, opts=LOOSE, machine=MACHINE, how=spindle.lookahead):
+def plan(b, opts=LOOSE, machine=MACHINE, how=schedule.lookahead):
     return how(b, machine, CUT, TEETH, opts).s_rpm
 
 
 def test_k_is_the_closed_form():
-    assert spindle.k_rpm2_per_mm(MACHINE, CUT, TEETH) == pytest.approx(K, rel=1e-12)
+    assert schedule.k_rpm2_per_mm(MACHINE, CUT, TEETH) == pytest.approx(K, rel=1e-12)
     assert MACHINE.accel_rpm_s == pytest.approx(A_RPM_S, rel=1e-12)
 
 
-@pytest.mark.parametrize("how", [spindle.lookahead, spindle.forward])
+@pytest.mark.parametrize("how", [schedule.lookahead, schedule.forward])
 def test_constant_requirement_gives_a_constant_profile(how):
     s = plan(blocks([5000.0] * 30), how=how)
     assert np.allclose(s, 5000.0, rtol=1e-12)
@@ -131,7 +131,7 @@ def test_rapid_between_cuts_ramps_in_rpm_over_its_duration():
     # a * T = 500 RPM, then the cut ramps in S^2 again
     req = np.array([2000.0] * 3 + [np.inf] + [8000.0] * 120)
     cutting = np.isfinite(req)
-    b = spindle.Blocks(length_mm=np.ones(req.size), req_rpm=req, cutting=cutting,
+    b = schedule.Blocks(length_mm=np.ones(req.size), req_rpm=req, cutting=cutting,
                        planned=np.ones(req.size, bool), time_s=np.full(req.size, 0.5),
                        fixed_rpm=np.zeros(req.size))
     s = plan(b)
@@ -144,9 +144,9 @@ def test_rapid_between_cuts_ramps_in_rpm_over_its_duration():
 def test_fixed_blocks_keep_the_program_speed():
     req = np.array([3000.0] * 5 + [0.0] * 3 + [3000.0] * 5)
     planned = np.array([True] * 5 + [False] * 3 + [True] * 5)
-    b = spindle.Blocks(length_mm=np.ones(13), req_rpm=req, cutting=planned,
+    b = schedule.Blocks(length_mm=np.ones(13), req_rpm=req, cutting=planned,
                        planned=planned, time_s=np.ones(13), fixed_rpm=np.full(13, 1500.0))
-    cap = spindle.caps(b, 0.0, 12000.0, lookahead=True)
+    cap = schedule.caps(b, 0.0, 12000.0, lookahead=True)
     assert np.allclose(cap[5:8], 1500.0)
     s = plan(b)
     assert np.allclose(s[5:8], 1500.0)
@@ -161,7 +161,7 @@ def test_forward_overshoots_where_lookahead_does_not():
     runs the cut above its speed: vc = vc_target * S / S_req > vc_target."""
     req = np.array([8000.0] * 20 + [2000.0] * 20)
     b = blocks(req)
-    fwd = plan(b, how=spindle.forward)
+    fwd = plan(b, how=schedule.forward)
     look = plan(b)
     vc_fwd = CUT.vc_m_min * fwd / req
     vc_look = CUT.vc_m_min * look / req
@@ -175,7 +175,7 @@ def test_forward_overshoots_where_lookahead_does_not():
 
 def test_forward_follows_a_rise_from_behind():
     req = np.array([2000.0] * 10 + [8000.0] * 150)
-    fwd = plan(blocks(req), how=spindle.forward)
+    fwd = plan(blocks(req), how=schedule.forward)
     expected = np.sqrt(np.minimum(2000.0 ** 2 + K * np.maximum(np.arange(160) - 9, 0),
                                   8000.0 ** 2))
     assert np.allclose(fwd, expected, rtol=1e-9)
@@ -183,12 +183,12 @@ def test_forward_follows_a_rise_from_behind():
 
 # ------------------------------------------------------------------ emission ----
 def emit(b, opts=LOOSE, s_lo=0.0, machine=MACHINE):
-    """Profile and emitted S as spindle.plan() wires them: (profile, s_cmd, s_low, s_high)."""
-    profile = spindle.lookahead(b, machine, CUT, TEETH, opts)
-    incs = spindle.increments(b, machine, profile.k_rpm2_per_mm)
+    """Profile and emitted S as schedule.plan() wires them: (profile, s_cmd, s_low, s_high)."""
+    profile = schedule.lookahead(b, machine, CUT, TEETH, opts)
+    incs = schedule.increments(b, machine, profile.k_rpm2_per_mm)
     cut_caps = profile.cap_rpm[b.cutting & b.planned]
-    ratio = spindle.max_speed_ratio(opts, CUT, TEETH, cut_caps.min() if cut_caps.size else 1.0)
-    return (profile, *spindle.emit_rpm(profile, b, incs, opts, s_lo, ratio))
+    ratio = schedule.max_speed_ratio(opts, CUT, TEETH, cut_caps.min() if cut_caps.size else 1.0)
+    return (profile, *schedule.emit_rpm(profile, b, incs, opts, s_lo, ratio))
 
 
 @pytest.mark.parametrize("rpm", [5000.7, 5000.0, 1393.0, 12000.0])
@@ -222,7 +222,7 @@ def test_emission_of_a_step_up_rises_in_steps(policy):
     assert cmd[0] >= 2000.0 - 1 and cmd[-1] >= 8000.0 - 50.0
     assert np.all(low <= high)
     # F from the real speeds keeps fz inside its band at both ends of every block
-    f = spindle.feeds(low, high, b, CUT, TEETH, np.inf, policy)
+    f = schedule.feeds(low, high, b, CUT, TEETH, np.inf, policy)
     fz_at_low = f / (TEETH * low)
     fz_at_high = f / (TEETH * high)
     top = CUT.fz_mm if policy == "below" else CUT.fz_mm * (1 + 0.5)
@@ -253,7 +253,7 @@ INC = st.one_of(st.floats(0.0, 5e6), st.just(math.inf), st.just(0.0))
     st.lists(INC, min_size=n, max_size=n))))
 def test_two_way_min_matches_the_definition(data):
     x, inc = (np.array(v, dtype=float) for v in data)
-    got = spindle._two_way_min(x, inc)
+    got = schedule._two_way_min(x, inc)
     want = two_way_min_reference(x.tolist(), inc.tolist())
     # round-off relative to the largest value (the segment offsets add up in one accumulate)
     tol = 1e-12 * (1.0 + np.max(np.abs(x)) + np.sum(inc[np.isfinite(inc)])) * len(x)
@@ -273,7 +273,7 @@ LOG_INC = st.one_of(st.floats(0.0, 0.1), st.just(math.inf), st.just(math.log(1 /
 def test_two_way_min_in_log_space(data):
     """The same passes run on log S (the fz band): small and negative values."""
     x, inc = (np.array(v, dtype=float) for v in data)
-    got = spindle._two_way_min(x, inc)
+    got = schedule._two_way_min(x, inc)
     want = two_way_min_reference(x.tolist(), inc.tolist())
     tol = 1e-12 * (1.0 + np.max(np.abs(x)) + np.sum(inc[np.isfinite(inc)])) * len(x)
     assert np.allclose(got, want, rtol=0, atol=tol)
@@ -293,7 +293,7 @@ def test_a_cut_after_an_unplanned_block_is_not_planned_faster_than_reachable():
     can lower it.  Here the program runs 3000 RPM before a cut that needs 1000; a spindle
     of 95 RPM/s cannot get there, so the emitted S stays near 3000 while the profile
     claims 1000 (vc three times its target, silently)."""
-    b = spindle.Blocks(length_mm=np.ones(4), req_rpm=np.array([np.inf, 1000.0, 1000.0, 1000.0]),
+    b = schedule.Blocks(length_mm=np.ones(4), req_rpm=np.array([np.inf, 1000.0, 1000.0, 1000.0]),
                        cutting=np.array([False, True, True, True]),
                        planned=np.array([False, True, True, True]), time_s=np.ones(4),
                        fixed_rpm=np.full(4, 3000.0))
@@ -309,20 +309,20 @@ def test_no_s_word_above_the_feed_limited_top_after_a_faster_unplanned_block():
     profile follows the spindle falling from 12000; the S words must still ask for no
     more than 5000 (the spindle then falls as fast as it can, as the profile assumes)."""
     n = 8
-    b = spindle.Blocks(length_mm=np.full(n, 0.5), req_rpm=np.array([np.inf] + [9000.0] * (n - 1)),
+    b = schedule.Blocks(length_mm=np.full(n, 0.5), req_rpm=np.array([np.inf] + [9000.0] * (n - 1)),
                        cutting=np.array([False] + [True] * (n - 1)),
                        planned=np.array([False] + [True] * (n - 1)), time_s=np.full(n, 0.1),
                        fixed_rpm=np.full(n, 12000.0))
     machine = Machine(accel_rad_s2=A_RPM_S * 2 * math.pi / 60, max_rpm=12000.0,
                       max_feed_mm_min=1000.0)
-    s_lo, s_hi = spindle.speed_limits(machine, CUT, TEETH)
+    s_lo, s_hi = schedule.speed_limits(machine, CUT, TEETH)
     assert s_hi == pytest.approx(5000.0)
-    profile = spindle.lookahead(b, machine, CUT, TEETH, LOOSE)
+    profile = schedule.lookahead(b, machine, CUT, TEETH, LOOSE)
     assert profile.s_rpm[1] > 5500.0  # still falling from the program's 12000
-    incs = spindle.increments(b, machine, profile.k_rpm2_per_mm)
-    uncapped = spindle.emit_rpm(profile, b, incs, LOOSE, s_lo, 3.0)
+    incs = schedule.increments(b, machine, profile.k_rpm2_per_mm)
+    uncapped = schedule.emit_rpm(profile, b, incs, LOOSE, s_lo, 3.0)
     assert uncapped.s_cmd_rpm[1] > s_hi  # what the emission did without the limit
-    em = spindle.emit_rpm(profile, b, incs, LOOSE, s_lo, 3.0, s_hi=s_hi)
+    em = schedule.emit_rpm(profile, b, incs, LOOSE, s_lo, 3.0, s_hi=s_hi)
     assert np.all(em.s_cmd_rpm[1:] <= 5000.0)
     assert np.all(em.s_high_rpm[1:] <= profile.s_rpm[:-1] + 1.0)  # the real speed falls
 
@@ -331,12 +331,12 @@ def test_the_lowest_speed_wins_over_a_feed_limited_top_below_it():
     """--min-rpm 3000 with a feed limit of 200 mm/min (fz 0.1 x 2: top 1000 RPM): the
     S words stay at the spindle's lowest speed, never under it (F is capped anyway)."""
     n = 6
-    b = spindle.Blocks(length_mm=np.ones(n), req_rpm=np.full(n, 500.0),
+    b = schedule.Blocks(length_mm=np.ones(n), req_rpm=np.full(n, 500.0),
                        cutting=np.ones(n, bool), planned=np.ones(n, bool),
                        time_s=np.ones(n), fixed_rpm=np.zeros(n))
     machine = Machine(accel_rad_s2=A_RPM_S * 2 * math.pi / 60, max_rpm=12000.0,
                       min_rpm=3000.0, max_feed_mm_min=200.0)
-    em, f, _ = spindle.plan(b, machine, CUT, TEETH, LOOSE)
+    em, f, _ = schedule.plan(b, machine, CUT, TEETH, LOOSE)
     assert np.all(em.s_cmd_rpm == 3000.0)
     assert np.all(f <= 200.0 + 1e-9)
 
@@ -347,7 +347,7 @@ def test_a_command_under_a_spindle_still_falling_keeps_the_fz_band():
     the command to 457 would let the real speed fall by more than the fz band's ratio
     within that block (fz over its band at the block's slowest speed): the command is
     held at the band's floor, ceil(522.16 / ratio) = 458, one RPM within the profile."""
-    b = spindle.Blocks(length_mm=np.array([0.417, 0.01, 1.476]),
+    b = schedule.Blocks(length_mm=np.array([0.417, 0.01, 1.476]),
                        req_rpm=np.array([np.inf, np.inf, 20633.6]),
                        cutting=np.array([False, False, True]),
                        planned=np.array([False, False, True]),
@@ -357,11 +357,11 @@ def test_a_command_under_a_spindle_still_falling_keeps_the_fz_band():
                       max_feed_mm_min=5000.0)
     cut = CuttingData(vc_m_min=100.0, fz_mm=0.15074388)
     opts = PlanOptions(min_rpm_step=10.0, fz_tolerance=0.0665056)
-    profile = spindle.lookahead(b, machine, cut, 4, opts)
-    incs = spindle.increments(b, machine, profile.k_rpm2_per_mm)
-    s_lo, s_hi = spindle.speed_limits(machine, cut, 4)
-    ratio = spindle.max_speed_ratio(opts, cut, 4, float(profile.cap_rpm[2]))
-    em = spindle.emit_rpm(profile, b, incs, opts, s_lo, ratio, s_hi=s_hi)
+    profile = schedule.lookahead(b, machine, cut, 4, opts)
+    incs = schedule.increments(b, machine, profile.k_rpm2_per_mm)
+    s_lo, s_hi = schedule.speed_limits(machine, cut, 4)
+    ratio = schedule.max_speed_ratio(opts, cut, 4, float(profile.cap_rpm[2]))
+    em = schedule.emit_rpm(profile, b, incs, opts, s_lo, ratio, s_hi=s_hi)
     assert em.s_high_rpm[2] == pytest.approx(522.1587531)  # the spindle entering the cut
     assert em.s_high_rpm[2] / em.s_low_rpm[2] <= ratio
     assert em.s_cmd_rpm[2] == 458.0 <= profile.s_rpm[2] + 1.0

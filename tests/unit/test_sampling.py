@@ -12,8 +12,10 @@ import numpy as np
 import pytest
 from hypothesis import given, strategies as st
 
-from ncopt.planning import spindle
-from ncopt.api import Job, nominal_cutting_data, rewrite_text
+from ncopt.planning import schedule
+from ncopt.api import rewrite_text
+from ncopt.planning.plans import nominal_cutting_data
+from ncopt.model import Job
 from ncopt.contacts.locate import (MAX_SAMPLES_PER_MOVE, _mesh_probe, contacts_for,
                             mesh_contacts_at_samples, path_contacts_at_samples, sample_points)
 from ncopt.contacts.geometry import MeshIndex, load_stl, mesh_from_triangles
@@ -96,14 +98,14 @@ class Case:
         self.cutter = cutter
         feed = np.isin(self.tp.motion, [Motion.LINEAR, Motion.ARC_CW, Motion.ARC_CCW])
         self.sel = feed & self.tp.known & self.tp.spindle_on
-        self.cut = nominal_cutting_data(self.tp, self.sel, cutter, "<test>")
-        self.s_lo, self.s_hi = spindle.speed_limits(MACHINE, self.cut, cutter.teeth)
-        self.idx = spindle.block_index(self.tp.line)
+        self.cut = nominal_cutting_data(self.tp, np.flatnonzero(self.sel), cutter, "<test>")
+        self.s_lo, self.s_hi = schedule.speed_limits(MACHINE, self.cut, cutter.teeth)
+        self.idx = schedule.block_index(self.tp.line)
 
     def block_req(self, contacts, point) -> tuple[np.ndarray, np.ndarray]:
         """(required S capped to the machine's range, cutting) per block."""
         tp = self.tp
-        b = spindle.blocks_from_contacts(
+        b = schedule.blocks_from_contacts(
             self.idx, tp.seg_len_mm, tp.motion, tp.feed_mm_min, tp.known, tp.spindle_on,
             tp.spindle_rpm, required_rpm(contacts.r_eff_mm, self.cut.vc_m_min),
             contacts.cutting, point, self.sel, MACHINE.rapid_mm_min)

@@ -19,7 +19,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 from stl import mesh as stl_mesh
 
-from ncopt.api import Job, rewrite_file, rewrite_text
+from ncopt.api import rewrite_file, rewrite_text
+from ncopt.model import Job
 from ncopt.contacts.locate import mesh_contacts_at_samples
 from ncopt.runtime.errors import UsageError
 from ncopt.contacts.geometry import MeshIndex, load_stl

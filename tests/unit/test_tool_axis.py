@@ -9,7 +9,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ncopt.api import Job, rewrite_text
+from ncopt.api import rewrite_text
+from ncopt.model import Job
 from ncopt.runtime.errors import NothingToPlan
 from ncopt.model import Cutter, CuttingData, Machine
 from ncopt.contacts.pathnormals import path_normals, tilt_from_axis

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ncopt.runtime.errors import PlanningError
-from ncopt.motion.interp import ffill
+from ncopt.motion.modal import ffill
 from ncopt.model import CuttingData, Machine, PlanOptions
 
 MAX_ITERATIONS = 200
@@ -597,11 +597,8 @@ def plan(blocks: Blocks, machine: Machine, cut: CuttingData, teeth: int,
     """Profile -> integer S commands (RPM) -> F (mm/min) per block."""
     if opts.planner not in ("lookahead", "forward"):
         raise PlanningError(f"unknown planner {opts.planner!r}")
-    if opts.s_changes == "between-passes":
-        from ncopt.planning.passes import plan as between_passes
-        return between_passes(blocks, machine, cut, teeth, opts)
-    if opts.s_changes not in (None, "anywhere"):
-        raise PlanningError(f"unknown S change mode {opts.s_changes!r}")
+    if opts.s_changes not in (None, "anywhere"):  # between passes: ncopt.planning.passes
+        raise PlanningError(f"S changes {opts.s_changes!r} are not planned here")
     planner_fn = lookahead if opts.planner == "lookahead" else forward
     profile = planner_fn(blocks, machine, cut, teeth, opts)
     incs = increments(blocks, machine, profile.k_rpm2_per_mm)
