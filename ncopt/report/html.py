@@ -33,7 +33,7 @@ from pathlib import Path
 
 from ncopt import __version__
 from ncopt.report.plots import colour_range as _colour_range  # noqa: F401 - the report's colour scales
-from ncopt.simulate.replay import SimReport, SimSeries
+from ncopt.simulate.results import SimReport, SimSeries
 
 CURVE_POINTS = 4000  # per curve and program (min/max buckets)
 PATH_POINTS = 24000  # 3D toolpath samples, all tools together
@@ -100,7 +100,8 @@ class ReportData:
 def from_rewrite(result, original_text: str, original_path: str, output_path: str, job,
                  mesh_index=None, sample_mm: float = 0.1) -> ReportData:
     """The report of an ``ncopt.api.Result``: original and rewrite simulated per planned tool."""
-    from ncopt.simulate.replay import describe_cutter, simulate_program
+    from ncopt.simulate.replay import simulate_program
+    from ncopt.simulate.toolchoice import describe_cutter
 
     s = result.summary
     sources = {t: src for t, _, src in s.tools}
@@ -207,7 +208,7 @@ def _mesh_rows(s) -> tuple:
 
 def _settings(job, control: str, s_changes, planned: bool) -> tuple:
     """Machine, control, cutter and targets; with ``planned``, how ncopt planned too."""
-    from ncopt.simulate.replay import describe_cutter
+    from ncopt.simulate.toolchoice import describe_cutter
 
     m, o = job.machine, job.options
     top = f"at most {m.max_feed_mm_min:g} mm/min" if m.max_feed_mm_min < float("inf") else \

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ncopt.motion.kinematics import tilt_deg
-from ncopt.simulate.replay import SimReport, SimSeries
+from ncopt.simulate.results import SimReport, SimSeries
 
 MAX_POINTS = 20000  # per curve; min/max decimation keeps peaks visible
 MAX_SCATTER = 200000  # toolpath samples drawn
