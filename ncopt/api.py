@@ -592,7 +592,7 @@ def _lag_warnings(prog, tp, idx, work: Work, targets: Targets, job: Job) -> tupl
     commanded for it, means the operation's target fz (within twice the band: a plunge
     at its own feed per tooth is off target by design, not because the spindle lags).
     Returns (warnings, 1-based lines)."""
-    from ncopt.simulate.replay import lagging_blocks
+    from ncopt.simulate.spindle import lagging_blocks
 
     n = tp.n
     counts = np.diff(np.concatenate((idx.first_point, [n])))

@@ -28,7 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from ncopt.motion.kinematics import tilt_deg
-from ncopt.simulate.replay import SimReport, SimSeries
+from ncopt.runtime.errors import UsageError
+from ncopt.simulate.results import SimReport, SimSeries
 
 MAX_POINTS = 20000  # per curve; min/max decimation keeps peaks visible
 MAX_SCATTER = 200000  # toolpath samples drawn
@@ -45,10 +46,11 @@ BULK_SHARE = 0.005  # ... and all but this share of the samples at each end
 
 
 def _pyplot():
+    """matplotlib.pyplot on the Agg backend (no display needed); UsageError without it."""
+    # matplotlib is optional (the "plot" extra) and slow to load: only a plot needs it
     try:
         import matplotlib
     except ImportError:  # pragma: no cover - depends on the install
-        from ncopt.runtime.errors import UsageError
         raise UsageError("plots need matplotlib: python -m pip install matplotlib (or, in "
                          "ncopt's source folder, python -m pip install \".[plot]\")") from None
     matplotlib.use("Agg")
@@ -56,7 +58,8 @@ def _pyplot():
     return plt
 
 
-def decimate(x: np.ndarray, *ys: np.ndarray, max_points: int = MAX_POINTS) -> tuple:
+def decimate(x: np.ndarray, *ys: np.ndarray,
+             max_points: int = MAX_POINTS) -> tuple[np.ndarray, ...]:
     """Keep the min and max of each bucket (of the first y) so spikes survive thinning."""
     n = x.shape[0]
     if n <= max_points:
@@ -153,7 +156,7 @@ def _targeted(runs, name: str) -> tuple[float, float, float]:
 
 
 def along_path_figure(runs: list[tuple[str, SimSeries, SimReport]], title: str = "",
-                      max_points: int = MAX_POINTS, size: tuple | None = None):
+                      max_points: int = MAX_POINTS, size: tuple[float, float] | None = None):
     """The figure of :func:`plot_along_path`, at most ``max_points`` per curve.
 
     The first program (the original, with ``--against``) is drawn dashed on top of
@@ -211,7 +214,7 @@ def along_path_figure(runs: list[tuple[str, SimSeries, SimReport]], title: str =
     return fig
 
 
-def _mark_outliers(ax, out: Outliers, scale: tuple, colour: str) -> None:
+def _mark_outliers(ax, out: Outliers, scale: tuple[float, float], colour: str) -> None:
     """Samples beyond the panel's range: a triangle at its edge, pointing their way."""
     lo, hi = scale
     for beyond, edge, marker in ((out.y < lo, lo, "v"), (out.y > hi, hi, "^")):
@@ -231,7 +234,7 @@ def toolpath_figure(series: SimSeries, color_by: str = "s_rpm", title: str = "",
                     max_points: int = MAX_SCATTER):
     """The figure of :func:`plot_toolpath`, with at most ``max_points`` samples drawn."""
     plt = _pyplot()
-    from matplotlib.ticker import MaxNLocator
+    from matplotlib.ticker import MaxNLocator  # loaded with pyplot, only for a plot
 
     cut = series.cutting
     xyz, value = series.xyz_mm[cut], getattr(series, color_by)[cut]
@@ -302,7 +305,7 @@ def png_bytes(fig, dpi: int = 110, palette: bool = True) -> bytes:
     _pyplot().close(fig)
     if not palette:
         return buffer.getvalue()
-    from PIL import Image  # matplotlib's own dependency
+    from PIL import Image  # matplotlib's own dependency, loaded with it: only for a plot
 
     buffer.seek(0)
     image = Image.open(buffer).convert("RGB").quantize(256, method=Image.Quantize.FASTOCTREE)
@@ -381,7 +384,8 @@ def curves_json(runs: list[tuple[str, SimSeries, SimReport]], max_points: int) -
     return json.dumps({"data": traces, "layout": layout, "config": CONFIG})
 
 
-def _outlier_trace(out: Outliers, scale: tuple, axis: str, colour: str, name: str) -> dict:
+def _outlier_trace(out: Outliers, scale: tuple[float, float, float], axis: str, colour: str,
+                   name: str) -> dict:
     """Triangles at the panel's edge where a curve leaves it; the value on hover."""
     target, lo, hi = scale
     keep = np.unique(np.concatenate((np.linspace(0, out.y.size - 1, min(MARKED, out.y.size))

@@ -9,7 +9,7 @@ import pytest
 pytest.importorskip("matplotlib")
 
 from ncopt.report import plots# noqa: E402
-from ncopt.simulate.replay import SimReport, SimSeries  # noqa: E402
+from ncopt.simulate.results import SimReport, SimSeries  # noqa: E402
 
 
 def _loop_decimate(x, y, max_points):

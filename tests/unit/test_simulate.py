@@ -27,8 +27,9 @@ from ncopt.contacts.geometry import MeshIndex, load_stl
 from ncopt.motion.interp import interpret
 from ncopt.model import Cutter, CuttingData, Machine, PlanOptions
 from ncopt.reading.parse import parse_text
-from ncopt.simulate import replay
-from ncopt.simulate.replay import _run_start_speeds, simulate_file, simulate_program
+from ncopt.simulate import spindle as simulate
+from ncopt.simulate.replay import simulate_file, simulate_program
+from ncopt.simulate.spindle import _run_start_speeds
 
 ROOT = Path(__file__).resolve().parents[2]
 BALL16 = Cutter(16, 2)
@@ -345,7 +346,7 @@ def test_cutting_with_the_spindle_stopped_is_reported(flat):
 def test_lagging_blocks_finds_an_s_jump_the_spindle_cannot_make():
     """S1000 -> S10000 on a 10 mm move at F2000: the spindle (2168 RPM/s) needs 4.2 s, the
     move takes 0.3 s: fz is far out of its band there; a move at the steady S is not."""
-    from ncopt.simulate.replay import lagging_blocks
+    from ncopt.simulate.spindle import lagging_blocks
     text = "G21 G90\nS1000 M3\nG0 X0 Y0 Z0\nG1 X10 F200\nG1 X20 S10000 F2000\nG1 X30\nM5\nM30\n"
     prog = parse_text(text)
     tp = interpret(prog)
