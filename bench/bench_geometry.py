@@ -45,7 +45,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from ncopt.contacts import geometry# noqa: E402
+from ncopt.contacts import geometry  # noqa: E402
 from ncopt.contacts import cutters
 from ncopt.model import Cutter  # noqa: E402
 

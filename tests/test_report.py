@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 pytest.importorskip("plotly")
 pytest.importorskip("matplotlib")
 
-from ncopt.report import html# noqa: E402
+from ncopt.report import html  # noqa: E402
 from ncopt.api import rewrite_text  # noqa: E402
 from ncopt.model import Job
 from ncopt.cli.app import Exit, app  # noqa: E402
@@ -91,10 +91,10 @@ def test_a_program_line_cannot_inject_markup(make_bowl, bowl_index, tmp_path):
     job = Job(cutter=Cutter(16.0, 2), machine=Machine(227.0, 15000.0),
               cutting=CuttingData(70.0, 0.1))
     result = rewrite_text(text, job, "x.nc", bowl_index)
-    html = html.render(html.from_rewrite(result, text, "x.nc", "<b>y</b>.nc", job,
-                                             bowl_index, sample_mm=0.5))
-    assert "<script>alert(1)</script>" not in html and "<b>y</b>" not in html
-    assert "&lt;script&gt;alert(1)&lt;/script&gt;" in html and "&lt;b&gt;y&lt;/b&gt;" in html
+    page = html.render(html.from_rewrite(result, text, "x.nc", "<b>y</b>.nc", job,
+                                         bowl_index, sample_mm=0.5))
+    assert "<script>alert(1)</script>" not in page and "<b>y</b>" not in page
+    assert "&lt;script&gt;alert(1)&lt;/script&gt;" in page and "&lt;b&gt;y&lt;/b&gt;" in page
 
 
 @pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (.ci/run installs it)")

@@ -119,7 +119,7 @@ pytest.importorskip("matplotlib")
 from hypothesis import given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from ncopt.report import plots# noqa: E402
+from ncopt.report import plots  # noqa: E402
 
 CHROMIUM = Path("/usr/bin/chromium")
 needs_chromium = pytest.mark.skipif(not CHROMIUM.exists(), reason="needs chromium")

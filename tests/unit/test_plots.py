@@ -8,7 +8,7 @@ import pytest
 
 pytest.importorskip("matplotlib")
 
-from ncopt.report import plots# noqa: E402
+from ncopt.report import plots  # noqa: E402
 from ncopt.simulate.results import SimReport, SimSeries  # noqa: E402
 
 

@@ -16,7 +16,7 @@ from ncopt.model import Job
 from ncopt.runtime.errors import VerificationError
 from ncopt.motion.interp import interpret
 from ncopt.model import Cutter, CuttingData, Edit, LineKind, Machine
-from ncopt.writing import edits
+from ncopt.writing import edits as edits_module
 from ncopt.reading.parse import parse_text
 from ncopt.writing.edits import (F_CODE, S_CODE, Targets, WordStyle, apply_edits, detect_style,
                            masked, plan_edits)
@@ -157,12 +157,12 @@ def test_apply_edits_is_the_plain_splice_whatever_its_block(case, block):
         end = min(at + length, len(text))
         edits.append(Edit(at, end, new))
         last = end
-    old = edits.SPLICE_BLOCK
-    edits.SPLICE_BLOCK = block
+    old = edits_module.SPLICE_BLOCK
+    edits_module.SPLICE_BLOCK = block
     try:
         assert apply_edits(text, edits) == _spliced_reference(text, edits)
     finally:
-        edits.SPLICE_BLOCK = old
+        edits_module.SPLICE_BLOCK = old
 
 
 def test_overlapping_edits_raise():

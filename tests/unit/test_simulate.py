@@ -27,7 +27,7 @@ from ncopt.contacts.geometry import MeshIndex, load_stl
 from ncopt.motion.interp import interpret
 from ncopt.model import Cutter, CuttingData, Machine, PlanOptions
 from ncopt.reading.parse import parse_text
-from ncopt.simulate import spindle as simulate
+from ncopt.simulate import spindle
 from ncopt.simulate.replay import simulate_file, simulate_program
 from ncopt.simulate.spindle import _run_start_speeds
 
@@ -417,7 +417,7 @@ def test_run_start_speeds_are_the_run_by_run_ramp(runs, limits):
         expected.append(w)
         w = min(w + d, target) if w < target else max(w - d, target)
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(simulate, "RUN_ROUNDS", limits[0])
-        mp.setattr(simulate, "RUN_WORK", limits[1])
+        mp.setattr(spindle, "RUN_ROUNDS", limits[0])
+        mp.setattr(spindle, "RUN_WORK", limits[1])
         got = _run_start_speeds(t, s, reach)
     assert np.array_equal(got, np.array(expected, dtype=np.float64))
