@@ -60,7 +60,7 @@ from ncopt.contacts.locate import (MAX_SAMPLES_PER_MOVE, centre_offsets, path_co
 from ncopt.runtime.errors import NcoptError, UsageError
 from ncopt.contacts.geometry import MeshIndex, contacts_from_mesh, load_stl
 from ncopt.motion.interp import interpret, tcp_of
-from ncopt.planning.plans import nominal_cutting_data
+from ncopt.planning.intent import nominal_cutting_data
 from ncopt.model import MM_PER_INCH
 from ncopt.motion.modal import ffill
 from ncopt.motion.kinematics import tilt_deg
