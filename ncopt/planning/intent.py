@@ -29,7 +29,7 @@ VERTICAL = 0.9
 
 
 def feed_intent(blocks, feed, s_prog, mine, machine, cut, cutter, opts, intent,
-                 match=FEED_MATCH):
+                match=FEED_MATCH):
     """Which blocks of the operation run at another feed than its cutting feed (read
     from its ``mine`` blocks: plunges and retracts aside).
 
@@ -53,13 +53,13 @@ def feed_intent(blocks, feed, s_prog, mine, machine, cut, cutter, opts, intent,
     fixed = replace(blocks, planned=np.zeros_like(blocks.planned))
     k = schedule.k_rpm2_per_mm(machine, cut, cutter.teeth)
     em = schedule.emit_rpm(schedule.Profile(fixed.fixed_rpm, fixed.fixed_rpm, k), fixed,
-                          schedule.increments(fixed, machine, k), opts, machine.min_rpm,
-                          float("inf"))
+                           schedule.increments(fixed, machine, k), opts, machine.min_rpm,
+                           float("inf"))
     s_ref = np.where(em.s_low_rpm > 0, em.s_low_rpm, s_prog)
     as_cut = replace(blocks, planned=np.ones_like(blocks.planned))
     q = max(opts.f_quantum_mm_min, 1e-9)
     expected = schedule.feeds(em.s_low_rpm, em.s_high_rpm, as_cut, cut, cutter.teeth,
-                             machine.max_feed_mm_min, opts.fz_policy)
+                              machine.max_feed_mm_min, opts.fz_policy)
     expected = np.floor(expected / q + 1e-6) * q
     off = np.where(blocks.cutting, np.abs(feed - expected) > 1.5 * q,
                    np.abs(feed - f0) > 1.5 * q)

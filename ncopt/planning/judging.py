@@ -48,8 +48,8 @@ class Judged:
 def judge(prog: Program, tp: Toolpath, job) -> Judged:
     """The operations, their cutters and cutting data, and which of them ncopt plans:
     split and classified (or as the program's ncopt stamp says), then decided (the
-    cutter, --tool, --operations, block-delete lines), then each one's cutting data,
-    which leave an operation whose data cannot be what the programmer meant.  Raises as
+    cutter, --tool, --operations, block-delete lines), then each one's cutting data: an
+    operation whose data cannot be what the programmer meant is left alone.  Raises as
     the rewrite does (UsageError for --diameter on a program of several tools, ...)."""
     stamps = read_stamps(prog)
     plannable = plannable_points(tp, job.cutting is not None)

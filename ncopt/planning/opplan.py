@@ -17,7 +17,7 @@ import numpy as np
 
 from ncopt.contacts.cutters import required_rpm
 from ncopt.contacts.locate import Sampled, contacts_for
-from ncopt.model import (Cutter, CuttingData, Machine, Method, Motion, PlanOptions, Toolpath)
+from ncopt.model import Cutter, CuttingData, Machine, Method, Motion, PlanOptions, Toolpath
 from ncopt.motion.modal import row_norms
 from ncopt.planning import passes, schedule
 from ncopt.planning.intent import FEED_MATCH, FEED_MATCH_G93, VERTICAL, feed_intent
@@ -400,7 +400,7 @@ def _back_at_fixed(s_cmd: np.ndarray, planned: np.ndarray, mine: np.ndarray,
     return out
 
 
-def _over_target(blocks, emitted, machine, cut, cutter) -> tuple:
+def _over_target(blocks, emitted, machine, cut, cutter) -> tuple[int, float]:
     """Cutting blocks where the real spindle stays above the requirement (after the
     program's own S in a block ncopt could not plan): (count, worst vc excess %)."""
     s_lo, s_hi = schedule.speed_limits(machine, cut, cutter.teeth)
