@@ -27,8 +27,12 @@ FEED_MATCH_G93 = 1e-3
 # not say what the operation's cutting feed is, however long such moves are together
 VERTICAL = 0.9
 
+# An operation's own S (RPM) and cutting feed (mm/min) as an ncopt stamp records them,
+# and the spindle its S and F were planned for: (accel rad/s^2, max RPM), None: not said
+Intent = tuple[float, float, tuple[float, float] | None]
 
-def feed_intent(blocks, feed, s_prog, mine, machine, cut, cutter, opts, intent,
+
+def feed_intent(blocks, feed, s_prog, mine, machine, cut, cutter, opts, intent: Intent | None,
                 match=FEED_MATCH):
     """Which blocks of the operation run at another feed than its cutting feed (read
     from its ``mine`` blocks: plunges and retracts aside).

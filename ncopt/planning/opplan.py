@@ -20,7 +20,7 @@ from ncopt.contacts.locate import Sampled, contacts_for
 from ncopt.model import Cutter, CuttingData, Machine, Method, Motion, PlanOptions, Toolpath
 from ncopt.motion.modal import row_norms
 from ncopt.planning import passes, schedule
-from ncopt.planning.intent import FEED_MATCH, FEED_MATCH_G93, VERTICAL, feed_intent
+from ncopt.planning.intent import FEED_MATCH, FEED_MATCH_G93, VERTICAL, Intent, feed_intent
 from ncopt.planning.operations import Operation
 from ncopt.planning.regions import Scope
 from ncopt.reading.controls import ANYWHERE, BETWEEN_PASSES
@@ -53,9 +53,9 @@ class OpPlan:
     reduced: np.ndarray
     cutting_feed_mm_min: float
     close_s_words: int = 0
-    over_target: tuple = (0, 0.0)
+    over_target: tuple[int, float] = (0, 0.0)  # cutting blocks above their vc target, worst %
     s0_rpm: float = 0.0  # the operation's own S (the program's), for the stamp
-    lines: tuple = (0, 0)  # its (first, last) lines, 1-based, numbered without stamp lines
+    lines: tuple[int, int] = (0, 0)  # its (first, last) lines, 1-based, without stamp lines
     coarse_lines: np.ndarray | None = None  # 0-based lines kept: F words too coarse for fz
     s_low_rpm: np.ndarray | None = None  # lowest real spindle speed per block of the window
     passes: int = 0  # runs of cutting blocks (ncopt.planning.passes.pass_ids)
@@ -92,7 +92,7 @@ def tool_view(tp: Toolpath, idx: schedule.BlockIndex, tool: int, cutter: Cutter,
 def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, source: str,
                    tp: Toolpath, idx: schedule.BlockIndex, point_op: np.ndarray, scope: Scope,
                    cmd_rpm: np.ndarray, machine: Machine, opts: PlanOptions,
-                   path: str, intent: tuple | None = None) -> OpPlan:
+                   path: str, intent: Intent | None = None) -> OpPlan:
     """Plan operation ``k``; ``cmd_rpm`` (nb,) holds the S commanded per block so far
     (the program's, and the plans before this one): it is updated in place.
 
@@ -202,7 +202,7 @@ class _FeedRoles:
 
 def _feed_roles(tp: Toolpath, fp: np.ndarray, blocks: schedule.Blocks, mine: np.ndarray,
                 cutter: Cutter, cut: CuttingData, machine: Machine, opts: PlanOptions,
-                intent: tuple | None) -> _FeedRoles:
+                intent: Intent | None) -> _FeedRoles:
     """The blocks' feeds read as :func:`ncopt.planning.intent.feed_intent` reads them,
     from the moves of the operation's own blocks that are not near the tool axis."""
     feed = tp.feed_mm_min[fp]

@@ -26,12 +26,13 @@ import numpy as np
 
 from ncopt.model import Cutter, Method, Program, Toolpath
 from ncopt.planning import regions, schedule
+from ncopt.planning.intent import Intent
 from ncopt.planning.judging import Judged, ToolChoice, judge, nothing_why, op_lines
 from ncopt.planning.meshfit import MeshFit, check_fit, mesh_fit
 from ncopt.planning.operations import CLEARING, ROUGH_LEVELS, Operation
 from ncopt.planning.opplan import OpPlan, ToolView, plan_operation, tool_view
 from ncopt.planning.regions import Scope
-from ncopt.reading.stamp import stamp_for
+from ncopt.reading.stamp import Stamps, stamp_for
 from ncopt.runtime.errors import NothingToPlan
 
 
@@ -92,7 +93,7 @@ def plan_program(prog: Program, tp: Toolpath, idx: schedule.BlockIndex, job,
     return Work(tuple(ops), scope, plans, choices, views, point_op, fits)
 
 
-def _intent(stamps, tool: int, lines: tuple[int, int]) -> tuple | None:
+def _intent(stamps: Stamps, tool: int, lines: tuple[int, int]) -> Intent | None:
     """(S0 RPM, F0 mm/min, the spindle planned for) of an operation an ncopt stamp
     records (the program is an ncopt output); None: read from the program."""
     stamp = stamp_for(stamps, tool, lines)
