@@ -72,7 +72,7 @@ def contacts(text: str, mesh, kinematics=None):
     from ncopt.contacts.locate import contacts_for
     from ncopt.motion.interp import interpret
     from ncopt.reading.parse import parse_text
-    from ncopt.planning.plans import plannable_points
+    from ncopt.planning.judging import plannable_points
 
     tp = interpret(parse_text(text, "p.nc"), kinematics=kinematics)
     return tp, contacts_for(tp, JOB.cutter, plannable_points(tp, True), mesh, 1.0, 0.05)

@@ -31,7 +31,7 @@ from ncopt.reading.parse import parse_text
 from ncopt.motion.interp import interpret
 from ncopt.runtime.errors import NothingToPlan
 from ncopt.model import Cutter, Machine, Motion
-from ncopt.planning.plans import PLAUSIBLE_F_MM_MIN, PLAUSIBLE_FZ_MM, PLAUSIBLE_S_RPM
+from ncopt.planning.intent import PLAUSIBLE_F_MM_MIN, PLAUSIBLE_FZ_MM, PLAUSIBLE_S_RPM
 
 from judge import RS274, canon
 

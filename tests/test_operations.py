@@ -487,7 +487,7 @@ def test_constant_z_levels_close_together_are_a_wall_or_a_z_level_finish(radius,
 def test_operation_comments_of_the_linuxcnc_5axis_demos_name_the_operation():
     """``( OPERATION=  ROUGH7  Z LEVEL  SRF_MILL1  )`` (the post of the LinuxCNC boat demos)
     names the operation; it used to be dropped for its '=' and shown as ``T1``."""
-    from ncopt.planning.operations import operation_comments
+    from ncopt.planning.opnames import operation_comments
     text = ("%\n(BOAT)\n\n( OPERATION=  ROUGH7  Z LEVEL  SRF_MILL1  )\n"
             "( TOOL: T1 = 10.0 dia. ENDMILLM1000:REG )\nG00 G17 G40 G90 G94\nT1 M6\n"
             "S630 M03\nG01 Z-6.625 F300.0\nX-49.375 F600.0\n\n( FINISH1 FLOWLINE SRF_MILL1 )\n"
@@ -501,7 +501,7 @@ def test_nothing_to_plan_names_operations_with_the_same_reason_once():
     and "and 6 more" (it listed the reason six times, then "and 3 more")."""
     from types import SimpleNamespace
 
-    from ncopt.planning.plans import _nothing_why
+    from ncopt.planning.judging import nothing_why as _nothing_why
     flat = "a flat end mill (2mm); ncopt plans ball and bull-nose cutters only"
     ops = [SimpleNamespace(kind=TWO_D, name=f"Hole {k}", lines=f"lines {k}-{k}", reason=flat)
            for k in range(1, 10)]

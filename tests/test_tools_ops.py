@@ -19,7 +19,7 @@ from ncopt.api import rewrite_text
 from ncopt.model import Job
 from ncopt.runtime.errors import NothingToPlan
 from ncopt.model import Cutter, Machine
-from ncopt.planning.operations import operation_comments
+from ncopt.planning.opnames import operation_comments
 from ncopt.reading.parse import parse_text
 from ncopt.planning.tooltable import BALL, FLAT, OTHER, UNNUMBERED, parse_tool_comment, tool_table
 

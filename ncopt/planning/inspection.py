@@ -5,7 +5,7 @@ without planning any."""
 from __future__ import annotations
 
 import re
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
@@ -15,9 +15,11 @@ from ncopt.motion.interp import interpret, tcp_for
 from ncopt.motion.modal import INCH_HEADER
 from ncopt.motion.kinematics import tilt_deg
 from ncopt.motion.times import feed_minutes
-from ncopt.model import LineKind, Motion, Program
+from ncopt.model import Job, LineKind, Machine, Motion, Program
 from ncopt.reading.parse import parse_text
+from ncopt.planning.judging import judge
 from ncopt.planning.tooltable import ToolInfo, tool_table
+from ncopt.runtime.stdio import count, styled
 
 
 @dataclass(frozen=True)
@@ -37,13 +39,18 @@ class JudgedOperation:
     time_min: float
 
 
+# A tool comment: (T, kind, diameter, corner radius or None, line, teeth or None, teeth
+# line or None, unit or None: the program's, source); lengths in the comment's unit
+ToolRow = tuple[int, str, float, float | None, int, int | None, int | None, str | None, str]
+
+
 @dataclass(frozen=True)
 class Inspection:
     """A program as ncopt reads it.  Lengths in mm, feeds in mm/min, times in min."""
 
     path: str
     dialect: str
-    dialect_marks: tuple
+    dialect_marks: tuple[str, ...]
     units: str
     lines: int
     blocks: int
@@ -52,20 +59,18 @@ class Inspection:
     rapids: int
     arcs: int
     unknown_moves: int
-    # (T, kind, diameter, corner radius or None, line, teeth or None, teeth line or None,
-    # unit or None: the program's, source) from the comments
-    tools: tuple
-    tools_used: tuple  # T numbers with feed moves
-    opaque: tuple  # (line, construct) left alone
-    warnings: tuple
-    s_range_rpm: tuple
-    f_range_mm_min: tuple
+    tools: tuple[ToolRow, ...]  # from the comments
+    tools_used: tuple[int, ...]  # T numbers with feed moves
+    opaque: tuple[tuple[int, str], ...]  # (line, construct) left alone
+    warnings: tuple[str, ...]
+    s_range_rpm: tuple[float, float]
+    f_range_mm_min: tuple[float, float]
     cut_length_mm: float
     cut_time_min: float
     kinematics: str | None = None  # what gave the tool axes (5-axis), None: always +Z
-    tilt_range_deg: tuple = (0.0, 0.0)  # tool axis from +Z over the readable feed moves
-    unknown_lines: tuple = ()  # (first, last) 1-based runs of the lines of unknown_moves
-    operations: tuple = ()  # JudgedOperation, in program order
+    tilt_range_deg: tuple[float, float] = (0.0, 0.0)  # tool axis from +Z, the readable feed moves
+    unknown_lines: tuple[tuple[int, int], ...] = ()  # 1-based runs of the lines of unknown_moves
+    operations: tuple[JudgedOperation, ...] = ()  # in program order
     operations_not_judged: str = ""  # why there are none where the program has moves
 
     def to_dict(self) -> dict:
@@ -132,32 +137,13 @@ def inspect_text(text: str, path: str = "<input>", *, dialect: str | None = None
 def judge_operations(prog: Program, tp, job=None,
                      max_feed_mm_min: float = float("inf")) -> tuple[JudgedOperation, ...]:
     """The operations as ``ncopt rewrite`` splits and judges them, without planning:
-    :func:`ncopt.planning.plans.plan_program` up to its plans (the same steps in the same order,
-    tests/test_shopfloor_cli.py checks that both agree on real programs).  Raises as the
-    rewrite does (UsageError for --diameter on a program of several tools, ...)."""
-    from ncopt.planning import operations as operations_
-    from ncopt.planning import plans
-    from ncopt.reading.stamp import read_stamps
-
+    :func:`ncopt.planning.judging.judge`, as :func:`ncopt.planning.plans.plan_program`
+    calls it before it plans (tests/test_shopfloor_cli.py checks that both agree on real
+    programs).  Raises as the rewrite does (UsageError for --diameter on a program of
+    several tools, ...)."""
     if job is None:
-        from ncopt.model import Job
-        from ncopt.model import Machine
-
         job = Job(machine=Machine(float("nan"), float("nan")))  # judging needs no spindle
-    stamps = read_stamps(prog)
-    plannable = plans.plannable_points(tp, job.cutting is not None)
-    choices = plans._choices(prog, tp, job, plannable, stamps)
-    diameters = {t: c.cutter.diameter_mm for t, c in choices.items() if c.cutter is not None}
-    found = plans._stamped_ops(prog, tp, stamps) or operations_.find(prog, tp, diameters)
-    ops = plans.decide(found, choices, job, tp, plannable)
-    point_op = plans._point_ops(tp, ops, plannable)
-    for k, op in enumerate(ops):
-        if op.planned:
-            cut, _ = plans._cutting(job, tp, point_op, k, op, choices[op.tool], stamps,
-                                    prog.path)
-            odd = plans.implausible(cut, choices[op.tool].cutter)
-            if odd:
-                ops[k] = replace(op, planned=False, reason=odd)
+    ops = judge(prog, tp, job).ops
     minutes = feed_minutes(tp, None, max_feed_mm_min)
     out = []
     for op in ops:
@@ -167,7 +153,7 @@ def judge_operations(prog: Program, tp, job=None,
     return tuple(out)
 
 
-def _runs(lines: np.ndarray) -> tuple:
+def _runs(lines: np.ndarray) -> tuple[tuple[int, int], ...]:
     """(first, last) of each run of consecutive numbers in sorted ``lines``."""
     if lines.size == 0:
         return ()
@@ -177,7 +163,7 @@ def _runs(lines: np.ndarray) -> tuple:
     return tuple((int(a), int(b)) for a, b in zip(firsts, lasts))
 
 
-def _tilt_range(tp, moves: np.ndarray) -> tuple:
+def _tilt_range(tp, moves: np.ndarray) -> tuple[float, float]:
     """(lowest, highest) angle of the tool axis from +Z at the ends of ``moves``, deg."""
     if tp.tool_axis is None or not moves.any():
         return (0.0, 0.0)
@@ -187,8 +173,6 @@ def _tilt_range(tp, moves: np.ndarray) -> tuple:
 
 def render_inspection(info: Inspection, out) -> None:
     """The inspection as a few readable lines on a rich console."""
-    from ncopt.runtime.stdio import count, styled
-
     say = lambda text: out.print(styled(text))  # noqa: E731
     why = count(len(info.dialect_marks), "mark")
     say(f"{info.path}: {info.dialect} dialect ({why}), {info.units}, {count(info.lines, 'line')}")
@@ -217,8 +201,6 @@ def render_inspection(info: Inspection, out) -> None:
 
 def _render_operations(info: Inspection, say) -> None:
     """The operations as rewrite would judge them, in the rewrite summary's words."""
-    from ncopt.runtime.stdio import count
-
     if info.operations_not_judged:
         say(f"  operations: not judged: {info.operations_not_judged}")
         return
@@ -236,10 +218,8 @@ def _render_operations(info: Inspection, say) -> None:
 RUNS_SHOWN = 8  # runs of lines named before "and N more"
 
 
-def line_runs(runs: tuple) -> str:
+def line_runs(runs: tuple[tuple[int, int], ...]) -> str:
     """``line 5``, ``lines 5-9, 12``, ``lines 5-9, ... and 3 more runs``."""
-    from ncopt.runtime.stdio import count
-
     shown = ", ".join(f"{a}" if a == b else f"{a}-{b}" for a, b in runs[:RUNS_SHOWN])
     more = f" and {count(len(runs) - RUNS_SHOWN, 'more run')}" if len(runs) > RUNS_SHOWN else ""
     single = len(runs) == 1 and runs[0][0] == runs[0][1]
@@ -255,20 +235,18 @@ def _name(tool: int) -> str:
     return f"T{tool}" if tool >= 0 else "a tool with no T number"
 
 
-def _tool_row(t: ToolInfo) -> tuple:
+def _tool_row(t: ToolInfo) -> ToolRow:
     corner = None if np.isnan(t.corner_radius) else t.corner_radius
     return (t.number, t.kind, t.diameter, corner, t.line, t.teeth, t.teeth_line, t.unit,
             t.source)
 
 
-def _describe_tool(row: tuple, program_units: str) -> str:
+def _describe_tool(row: ToolRow, program_units: str) -> str:
     """``ball D16 r8 mm, 2 teeth (line 4, Fusion 360)``."""
     number, kind, diameter, corner, line, teeth, teeth_line, unit, source = row
     size = f"D{diameter:g}" + ("" if corner is None else f" r{corner:g}")
     where = f"line {line}" + ("" if teeth is None or teeth_line == line
                               else f", teeth line {teeth_line}")
-    from ncopt.runtime.stdio import count
-
     teeth_said = "teeth not given" if teeth is None else count(teeth, "tooth", "teeth")
     del number
     return f"{kind} {size} {unit or program_units}, {teeth_said} ({where}, {source})"

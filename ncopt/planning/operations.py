@@ -10,8 +10,9 @@ finishing is planned; everything else is left exactly as programmed, with the re
 
 Splitting: the operation comments CAM posts write (Fusion's ``(PARALLEL1)`` after a
 blank line or before the tool call, FreeCAD's ``(Begin operation: ...)``, ...) and the
-tool changes.  Each operation is cut further into parts at its rapid moves, and the
-parts are classified from their geometry first and their name second:
+tool changes (:mod:`ncopt.planning.opnames` reads the names).  Each operation is cut
+further into parts at its rapid moves, and the parts are classified from their geometry
+first and their name second:
 
 * a **3D surface finish**: the cut's Z changes along the passes (raster, scallop,
   spiral, flow...) and neighbouring passes lie within a finishing stepover;
@@ -25,7 +26,7 @@ parts are classified from their geometry first and their name second:
 
 Geometry features are computed on samples about R/2 apart along the feed moves, with
 the whole operation as context (so a one-way raster whose passes are separated by
-rapids still sees its neighbouring passes).
+rapids still sees its neighbouring passes): :mod:`ncopt.planning.opgeometry`.
 """
 
 from __future__ import annotations
@@ -36,10 +37,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ncopt.model import LineKind, Motion, Program, Toolpath
 from ncopt.motion.modal import row_norms
-from ncopt.contacts.kdtree import cKDTree
-from ncopt.model import Cutter, LineKind, Motion, Program, Toolpath
-from ncopt.planning.toolcomments import read_comment
+from ncopt.planning.medians import weighted_median
+from ncopt.planning.opgeometry import Levels, Samples, levels, neighbour_pass, retraced, samples
+from ncopt.planning.opnames import operation_comments
 
 FINISH_3D, FINISH_ZLEVEL = "3D surface finishing", "Z-level finishing"
 ROUGH_LEVELS, CLEARING, TWO_D = "roughing levels", "area clearing", "2D contour"
@@ -48,16 +50,11 @@ STAMPED, LEFT_BEFORE = "planned before (ncopt stamp)", "left before (ncopt stamp
 UNPLACED = "moves ncopt cannot place"  # feed moves whose position or tool axis is unknown
 PLANNED_KINDS = (FINISH_3D, FINISH_ZLEVEL)
 
-SLOPE = 0.03  # |dz|/ds above which a move is sloped (1.7 deg)
 SLOPED_SHARE = 0.2  # a part whose sloped share reaches this follows a 3D surface
 NEIGHBOUR_D = 0.75  # a neighbouring pass within this many diameters: a finishing stepover
 NEIGHBOUR_SHARE = 0.5
 ZLEVEL_STEP_D = 0.15  # constant-Z levels at most this many diameters apart: finishing
 INTERIOR_SHARE = 0.25  # a level whose cells are this often surrounded: an area is cleared
-MAX_SAMPLES = 60000
-RETRACE_SAMPLES = 15000  # samples judged for vertical walls (each looks at 48 moves)
-OTHER_PASS_RATIO = 3.0  # path distance > ratio * straight distance: another pass
-VERTICAL = 0.98  # the nearest other pass this close to straight above: a retraced contour
 RETRACE_SHARE = 0.6
 # moves slower than this share of the operation's typical feed are entries (ramps,
 # plunges, lead-ins at a reduced feed), not its surface
@@ -104,147 +101,6 @@ class Operation:
         return f"lines {self.first_line + 1}-{self.last_line + 1}"
 
 
-# ------------------------------------------------------------------ comments ----
-_FREECAD = re.compile(r"^\s*\(\s*Begin operation:\s*(.*?)\s*\)\s*$", re.I)
-_ESTLCAM = re.compile(r"^\s*\(\s*No\.\s*\d+\s*:\s*(.*?)\s*\)\s*$", re.I)
-# ``( OPERATION=  ROUGH7  Z LEVEL  SRF_MILL1  )`` (the LinuxCNC 5-axis demos' post)
-_OPERATION_IS = re.compile(r"^\s*\(\s*OPERATION\s*=\s*([^()]*?)\s*\)\s*$", re.I)
-# a keyed name: hyperMILL's ``*   - JOB: 68: FreePar12_...`` (``;`` or ``( )`` in its
-# G-code posts), ``; Operation: CAVITY_MILL``, ``(TOOLPATH NAME: Finish)``
-_KEYED = re.compile(r"^[\s*-]*(?:OPERATION(?:\s+NAME)?|OP\s*NAME|TOOLPATH(?:\s+NAME)?|JOB)"
-                    r"\s*:\s*(?:\d+\s*:\s*)?(\S.*?)\s*$", re.I)
-_COMMENT_ONLY = re.compile(r"^\s*(?:N[0-9.]+\s*)?\(\s*([^()]*?)\s*\)\s*$|^\s*;\s*(.*?)\s*$")
-_DASHES = re.compile(r"^\s*\(\s*[-=*]{4,}\s*\)\s*$|^\s*;\s*-*\s*-{4,}\s*$")
-_NOT_AN_OPERATION = re.compile(
-    r"^(?:T\d+\b.*D\s*=|TOOL\b|MSG|ncopt\b|Begin\b|Finish\b|Path:|Block-|Exported|Post Processor|"
-    r"Output Time|End\b|Required tools|Machining time|Created by|Project\b|FILENAME|Tool\b)",
-    re.I)
-_WORDS_ONLY = re.compile(r"^(?:[A-Z]\s*[-+]?\d+(?:\.\d*)?\s*)+$", re.I)  # "( M6 T2 )": code
-# a sentence, not a name: it ends with a stop or a comma, holds "word, word" or "key: value",
-# or runs over six words (Fusion's notices: "(When using Fusion for Personal Use, the
-# feedrate of rapid)", "(Aviso: uso personal...)", "(Using high feed G1 F5000. instead of G0.)")
-_SENTENCE = re.compile(r"[.,;:!?]\s*$|\w,\s|\w:\s|(?:\S+\s+){6}\S|personal\s+use|uso\s+personal|"
-                       r"subscription|suscripci", re.I)
-
-
-def operation_comments(prog: Program) -> dict[int, str]:
-    """0-based line -> operation name, for the comments that start an operation.
-
-    A name is a comment-only line in the forms CAM systems write (FreeCAD's ``Begin
-    operation:``, Estlcam's ``No. 1:``, ``OPERATION=``, keyed ``JOB:`` names), or a short
-    comment that is no sentence and no tool description: the first such one of a block of
-    comment lines that opens after a blank line or a tool call, or that a tool call
-    follows, or that notices or a tool's description open (Fusion writes a blank line,
-    its notices, the name, the tool call); one framed by dashes; the last line before a
-    tool call."""
-    found: dict[int, str] = {}
-    block: list[tuple[int, str | None, bool]] = []  # consecutive comment-only lines
-    raw = np.frombuffer(prog.text.encode("latin-1"), dtype=np.uint8)
-    marks = np.flatnonzero((raw == ord("(")) | (raw == ord(";")))
-    comment_only = _comment_only_lines(prog)
-    for i in np.unique(np.searchsorted(prog.line_start, marks, side="right") - 1).tolist():
-        if i >= prog.n_lines or not comment_only[i]:
-            continue
-        if block and block[-1][0] != i - 1:
-            _block_names(prog, block, found)
-            block = []
-        line = prog.line_text(i)
-        direct = _named(line)
-        if direct:
-            found[i] = direct
-            block.append((i, None, False))
-        else:
-            block.append((i, *_name_or_notice(line)))
-    if block:
-        _block_names(prog, block, found)
-    return found
-
-
-def _named(line: str) -> str | None:
-    """The name a comment line gives in a CAM system's own form, or None."""
-    m = _FREECAD.match(line) or _ESTLCAM.match(line)
-    if m:
-        return m.group(1) or None
-    m = _OPERATION_IS.match(line)
-    if m and m.group(1):
-        return " ".join(m.group(1).split())
-    m = _KEYED.match(_body(line))
-    return m.group(1) if m and len(m.group(1)) <= 80 else None
-
-
-def _body(line: str) -> str:
-    """The text of a comment-only line, without its parentheses or semicolon."""
-    m = _COMMENT_ONLY.match(line)
-    return ((m.group(1) if m.group(1) is not None else m.group(2)) or "").strip() if m else ""
-
-
-def _name_or_notice(line: str) -> tuple[str | None, bool]:
-    """(the comment's text if it may name an operation (short, no sentence, no tool),
-    whether it is a notice or a tool's description, which a name may follow)."""
-    name = _body(line)
-    if not name or _DASHES.match(line) or _WORDS_ONLY.match(name):
-        return None, False
-    fact = read_comment(name)
-    tool = _NOT_AN_OPERATION.match(name) is not None or (fact is not None
-                                                          and fact.diameter is not None)
-    if tool or _SENTENCE.search(name):  # "(1/4 BALL ENDMILL)", "(3mm Endmill001)": no name
-        return None, True
-    return (None if len(name) > 48 or "=" in name else name), False
-
-
-def _block_names(prog: Program, block: list, found: dict) -> None:
-    """Mark the names of one block of consecutive comment-only lines."""
-    first, last = block[0][0], block[-1][0]
-    names = [(i, name) for i, name, _ in block if name]
-    if not names:
-        return
-    before_call = _before_tool_call(prog, last)
-    after_notices = names[0][0] > first and all(
-        notice for i, _, notice in block if i < names[0][0])  # Fusion's notices, then the name
-    if (_after_blank(prog, first) or _after_tool_call(prog, first) or before_call
-            or after_notices):
-        found.setdefault(*names[0])
-    for i, name in names:
-        if _framed(prog, i):
-            found.setdefault(i, name)
-    if before_call and names[-1][0] == last:
-        found.setdefault(*names[-1])  # the line before the tool call names what follows
-
-
-def _comment_only_lines(prog: Program) -> np.ndarray:
-    """(n_lines,) bool: the line holds a comment (or nothing) and no word but a block
-    number; for every line at once (one search of the word table per comment line cost
-    3 ms at 1M blocks: 14 s for a program with a comment every 200 lines)."""
-    other = np.zeros(prog.n_lines, dtype=bool)
-    other[prog.word_line[prog.word_letter != ord("N")]] = True
-    kind = prog.line_kind
-    return (kind == LineKind.BLANK) | ((kind == LineKind.WORDS) & ~other)
-
-
-def _framed(prog: Program, i: int) -> bool:
-    """Between dashed comment lines (CAMWorks / SolidWorks CAM)."""
-    return 0 < i < prog.n_lines - 1 and bool(_DASHES.match(prog.line_text(i - 1)))
-
-
-def _after_blank(prog: Program, i: int) -> bool:
-    return i > 0 and not prog.line_text(i - 1).strip()
-
-
-_TOOL_CALL = re.compile(r"^\s*(?:N[0-9.]+\s*)?(?:T\s*\d+\s*M0?6|M0?6\s*T\s*\d+|T\s*\d+)\b", re.I)
-
-
-def _after_tool_call(prog: Program, i: int) -> bool:
-    return i > 0 and bool(_TOOL_CALL.match(prog.line_text(i - 1)))
-
-
-def _before_tool_call(prog: Program, i: int) -> bool:
-    for j in range(i + 1, min(i + 3, prog.n_lines)):
-        text = prog.line_text(j)
-        if text.strip():
-            return bool(_TOOL_CALL.match(text))
-    return False
-
-
 # ------------------------------------------------------------------ splitting ----
 @dataclass(frozen=True)
 class Span:
@@ -280,168 +136,6 @@ def spans(prog: Program, tp: Toolpath) -> list[Span]:
     return out
 
 
-# ------------------------------------------------------------------- geometry ----
-@dataclass(frozen=True)
-class _Samples:
-    """Points about R/2 apart along one operation's feed moves, (m,) arrays."""
-
-    xyz: np.ndarray  # (m, 3) mm
-    s_mm: np.ndarray  # path length along the operation's feed moves
-    weight_mm: np.ndarray  # path length each sample stands for
-    sloped: np.ndarray
-    point: np.ndarray  # toolpath point whose move the sample is on
-
-
-def _samples(tp: Toolpath, points: np.ndarray, spacing_mm: float) -> _Samples:
-    """Samples ``spacing_mm`` apart along the moves ending at ``points`` (indices into the
-    toolpath), taken one after the other; at most ``MAX_SAMPLES`` (the spacing grows for
-    long operations), so a million blocks cost no more than a few thousand.
-
-    5 axes: with one tilted tool axis over them (3+2) the moves are seen in a frame whose
-    Z is that axis (levels and slopes along the tool); where the axis turns (simultaneous
-    5-axis) a move with the tool tilted follows the surface, whatever its tip's Z."""
-    a, b = np.take(tp.xyz_mm, points - 1, axis=0), np.take(tp.xyz_mm, points, axis=0)
-    turning = np.zeros(points.shape, dtype=bool)
-    frame = _tool_frame(tp, points)
-    if frame is not None:
-        a, b = a @ frame.T, b @ frame.T
-    elif tp.tool_axis is not None and points.size:
-        turning = np.any(np.abs(tp.tool_axis[points][:, :2]) > 1e-9, axis=1)
-    d = b - a
-    length = row_norms(d)
-    cum = np.concatenate(([0.0], np.cumsum(length)))
-    total = float(cum[-1])
-    spacing = max(spacing_mm, total / MAX_SAMPLES, 1e-3)
-    s = (np.arange(max(int(total / spacing), 1)) + 0.5) * spacing
-    s = s[s < total] if total > 0 else np.zeros(0)
-    seg = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, max(points.size - 1, 0))
-    frac = (s - cum[seg]) / np.maximum(length[seg], 1e-12)
-    xyz = a[seg] + d[seg] * frac[:, None]
-    sloped = (np.abs(d[:, 2]) > SLOPE * np.maximum(length, 1e-12)) | turning
-    weight = np.full(s.shape, spacing)
-    return _Samples(xyz, s, weight, sloped[seg], points[seg])
-
-
-def _tool_frame(tp: Toolpath, points: np.ndarray) -> np.ndarray | None:
-    """The rotation into the frame whose Z is the one tool axis of the moves ending at
-    ``points`` (3+2), None for +Z or a turning axis."""
-    if tp.tool_axis is None or not points.size:
-        return None
-    e = tp.tool_axis[points]
-    if not np.allclose(e, e[0], atol=1e-9) or np.allclose(e[0], (0.0, 0.0, 1.0), atol=1e-9):
-        return None
-    return _to_axis(e[0])
-
-
-def _to_axis(e: np.ndarray) -> np.ndarray:
-    """A rotation taking the unit vector ``e`` to +Z (the identity for +Z)."""
-    z = np.array([0.0, 0.0, 1.0])
-    v, c = np.cross(e, z), float(np.dot(e, z))
-    if np.linalg.norm(v) < 1e-12:
-        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
-    k = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-    return np.eye(3) + k + k @ k / (1.0 + c)
-
-
-def _neighbour_pass(sm: _Samples, radius_mm: float) -> np.ndarray:
-    """(m,) bool: another pass runs within ``radius_mm`` of the sample."""
-    m = sm.xyz.shape[0]
-    if m < 2:
-        return np.zeros(m, dtype=bool)
-    k = min(12, m)
-    dist, j = cKDTree(sm.xyz).query(sm.xyz, k=k, distance_upper_bound=radius_mm, workers=-1)
-    ok = np.isfinite(dist)
-    j = np.where(ok, j, 0)
-    other = ok & (np.abs(sm.s_mm[j] - sm.s_mm[:, None]) > OTHER_PASS_RATIO * np.maximum(dist, 1e-9))
-    return other.any(axis=1)
-
-
-def _retraced(tp: Toolpath, geo: np.ndarray, sm: _Samples, radius_mm: float) -> np.ndarray:
-    """(m,) bool, for the constant-Z samples: the nearest point of another pass lies
-    straight above or below them (the same contour retraced at another depth: a vertical
-    wall).  The nearest point on the other pass's moves, not its nearest sample: a CAM
-    writes each level with its own points."""
-    out = np.zeros(sm.xyz.shape[0], dtype=bool)
-    flat = np.flatnonzero(~sm.sloped)
-    if flat.size == 0 or geo.size < 2:
-        return out
-    a, b = np.take(tp.xyz_mm, geo - 1, axis=0), np.take(tp.xyz_mm, geo, axis=0)
-    frame = _tool_frame(tp, geo)  # 3+2: the samples are in the tool's frame, so the moves too
-    if frame is not None:
-        a, b = a @ frame.T, b @ frame.T
-    length = row_norms(b - a)
-    s_end = np.cumsum(length)
-    stride = max(1, -(-flat.size // RETRACE_SAMPLES))  # every stride-th sample judged
-    idx = flat[::stride]
-    _, vertical = _other_pass(cKDTree(b), a, b, length, s_end, sm, idx,
-                              min(24, geo.size), radius_mm)  # a dense contour: own points first
-    out[flat] = vertical[np.arange(flat.size) // stride]  # its neighbours along the path alike
-    return out
-
-
-def _other_pass(tree, a, b, length, s_end, sm: _Samples, idx: np.ndarray, k: int,
-                radius_mm: float) -> tuple[np.ndarray, np.ndarray]:
-    """For the samples ``idx``: is another pass within ``radius_mm`` among the moves at
-    the ``k`` nearest points, and is the nearest such one straight above or below."""
-    q = sm.xyz[idx]
-    _, j = tree.query(q, k=k, workers=-1)
-    j = j.reshape(idx.size, -1)
-    seg = np.concatenate((j, np.minimum(j + 1, b.shape[0] - 1)), axis=1)  # both moves at a point
-    sa, sb = a[seg], b[seg]
-    d = sb - sa
-    t = np.clip(np.einsum("mkc,mkc->mk", q[:, None, :] - sa, d) /
-                np.maximum(np.einsum("mkc,mkc->mk", d, d), 1e-24), 0.0, 1.0)
-    off = sa + d * t[..., None] - q[:, None, :]
-    dist = np.linalg.norm(off, axis=2)
-    s_c = s_end[seg] - length[seg] * (1.0 - t)
-    other = (dist <= radius_mm) & (np.abs(s_c - sm.s_mm[idx][:, None]) >
-                                   OTHER_PASS_RATIO * np.maximum(dist, 1e-9))
-    best = np.argmin(np.where(other, dist, np.inf), axis=1)
-    rows = np.arange(idx.size)
-    near = off[rows, best]
-    found = other[rows, best]
-    return found, found & (np.abs(near[:, 2]) > VERTICAL * np.maximum(dist[rows, best], 1e-12))
-
-
-@dataclass(frozen=True)
-class _Levels:
-    """Per sample at constant Z: is its grid cell surrounded at its level, and how far
-    up is the next level over the same cell (inf: none)."""
-
-    interior: np.ndarray
-    step_mm: np.ndarray
-
-
-def _levels(sm: _Samples, cell_mm: float) -> _Levels:
-    flat = ~sm.sloped
-    m = sm.xyz.shape[0]
-    interior, step = np.zeros(m, dtype=bool), np.full(m, np.inf)
-    if not flat.any():
-        return _Levels(interior, step)
-    z = np.round(sm.xyz[flat, 2] / 0.002).astype(np.int64)
-    cx = np.floor(sm.xyz[flat, 0] / cell_mm).astype(np.int64)
-    cy = np.floor(sm.xyz[flat, 1] / cell_mm).astype(np.int64)
-    cx -= cx.min() - 1
-    cy -= cy.min() - 1
-    zl = z - z.min()
-    w = int(cy.max()) + 2
-    h = int(cx.max()) + 2
-    cell = cx * w + cy
-    key = zl * (h * w) + cell
-    uniq = np.unique(key)
-    near = [uniq + dk for dk in (w, -w, 1, -1)]
-    inner = np.logical_and.reduce([np.isin(k, uniq) for k in near])
-    interior[flat] = inner[np.searchsorted(uniq, key)]
-    # the next level up over the same cell: the next (cell, level) pair in sorted order
-    top = int(zl.max()) + 1
-    pairs, inv = np.unique(cell * top + zl, return_inverse=True)
-    p_cell, p_z = pairs // top, pairs % top
-    nxt = np.full(pairs.size, np.inf)
-    nxt[:-1] = np.where(p_cell[1:] == p_cell[:-1], (p_z[1:] - p_z[:-1]) * 0.002, np.inf)
-    step[flat] = nxt[inv.ravel()]
-    return _Levels(interior, step)
-
-
 # ------------------------------------------------------------- classification ----
 @dataclass(frozen=True)
 class _Part:
@@ -453,15 +147,7 @@ class _Part:
     length_mm: float
 
 
-def _weighted_median(x: np.ndarray, w: np.ndarray) -> float:
-    if x.size == 0 or w.sum() <= 0:
-        return float("nan")
-    order = np.argsort(x)
-    cum = np.cumsum(w[order])
-    return float(x[order][np.searchsorted(cum, 0.5 * cum[-1])])
-
-
-def _kind_of(sm: _Samples, sel: np.ndarray, nb: tuple, lv: _Levels,
+def _kind_of(sm: Samples, sel: np.ndarray, nb: tuple, lv: Levels,
              diameter_mm: float) -> tuple[str, float, float, str]:
     """Kind of the samples ``sel`` of one part: (kind, step mm, stepover mm, why).
 
@@ -487,7 +173,7 @@ def _kind_of(sm: _Samples, sel: np.ndarray, nb: tuple, lv: _Levels,
     inner = float(wf[lv.interior[flat]].sum()) / max(float(wf.sum()), 1e-12)
     finite = np.isfinite(lv.step_mm[flat])
     above = float(wf[finite].sum()) / max(float(wf.sum()), 1e-12)
-    step = _weighted_median(lv.step_mm[flat][finite], wf[finite])
+    step = weighted_median(lv.step_mm[flat][finite], wf[finite], in_order=False)
     if inner >= INTERIOR_SHARE:
         return CLEARING, step, np.nan, (
             f"constant-Z levels that sweep an area ({100 * inner:.0f} % of the cut inside the "
@@ -532,15 +218,6 @@ def classify(prog: Program, tp: Toolpath, span: Span, diameters: dict) -> list[O
     return _operations(tp, span, parts, pts, base, canned)
 
 
-def cutting_feed(tp: Toolpath, feed: np.ndarray) -> float:
-    """The operation's cutting feed: the F that most of its feed-move length runs at
-    (mm/min); ramps, plunges and lead-ins usually run at others."""
-    f = np.round(tp.feed_mm_min[feed], 3)
-    values, inv = np.unique(f, return_inverse=True)
-    length = np.bincount(inv.ravel(), weights=tp.seg_len_mm[feed], minlength=values.size)
-    return float(values[int(np.argmax(length))])
-
-
 def _parts(tp: Toolpath, pts: np.ndarray, feed: np.ndarray, diameter_mm: float) -> list[_Part]:
     """Cut the operation's points (``pts``: consecutive) at each rapid that follows a cut;
     classify each chunk with the whole operation as context; merge neighbours of the
@@ -556,16 +233,17 @@ def _parts(tp: Toolpath, pts: np.ndarray, feed: np.ndarray, diameter_mm: float) 
     d = np.take(tp.xyz_mm, feed, axis=0) - np.take(tp.xyz_mm, feed - 1, axis=0)
     plunge = np.abs(d[:, 2]) > 0.9 * np.maximum(row_norms(d), 1e-12)
     f = tp.feed_mm_min[feed]
-    typical = _weighted_median(f[~plunge], tp.seg_len_mm[feed][~plunge])  # plunges aside
+    typical = weighted_median(f[~plunge], tp.seg_len_mm[feed][~plunge],  # plunges aside
+                              in_order=False)
     at_feed = f >= SLOW_FEED * typical
     geo = feed[~plunge & at_feed]
     if geo.size == 0:
         return [_Part(0, NO_CUT, np.nan, np.nan, "no cut at the cutting feed", 0.0)]
     radius = 0.5 * diameter_mm
-    sm = _samples(tp, geo, 0.5 * radius)
-    nb = (_neighbour_pass(sm, NEIGHBOUR_D * diameter_mm),
-          functools.cache(lambda: _retraced(tp, geo, sm, NEIGHBOUR_D * diameter_mm)))
-    lv = _levels(sm, max(0.5 * radius, 0.05))
+    sm = samples(tp, geo, 0.5 * radius)
+    nb = (neighbour_pass(sm, NEIGHBOUR_D * diameter_mm),
+          functools.cache(lambda: retraced(tp, geo, sm, NEIGHBOUR_D * diameter_mm)))
+    lv = levels(sm, max(0.5 * radius, 0.05))
     chunk_of_sample = np.searchsorted(starts, sm.point - pts[0], side="right")
     groups = _groups(starts, chunk_of_sample, sm.weight_mm, MIN_PART_D * diameter_mm)
     parts: list[_Part] = []

@@ -38,8 +38,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from ncopt.planning import schedule
 from ncopt.model import CuttingData, Machine, PlanOptions
+from ncopt.motion.modal import ffill
+from ncopt.planning import schedule
+from ncopt.planning.emission import snapped
 
 # per gap, 1 RPM of the spindle's reach is kept for the rounding of S to integers
 _ROUNDING_RPM = 1.0
@@ -115,7 +117,7 @@ def pass_speeds(prof: schedule.Profile, blocks: schedule.Blocks, pid: np.ndarray
         return np.zeros(0)
     in_pass = pid >= 0
     lowest = np.full(n, np.inf)
-    np.minimum.at(lowest, pid[in_pass], schedule._snapped(prof.s_rpm[in_pass]))
+    np.minimum.at(lowest, pid[in_pass], snapped(prof.s_rpm[in_pass]))
     lo_int = math.ceil(s_lo)
     top = max(math.floor(s_hi), lo_int) if math.isfinite(s_hi) else math.inf
     target = np.clip(np.floor(lowest), lo_int, top)
@@ -137,7 +139,7 @@ def _gaps(blocks: schedule.Blocks, pid: np.ndarray, n: int) -> tuple[np.ndarray,
     whether the spindle restarts or the program's own S comes in between (then the
     pass does not start from the previous pass's speed)."""
     in_pass = pid >= 0
-    owner = schedule.ffill(np.where(in_pass, pid + 1.0, np.nan), 0.0).astype(np.int64)
+    owner = ffill(np.where(in_pass, pid + 1.0, np.nan), 0.0).astype(np.int64)
     gap = ~in_pass & (owner < n)  # blocks between pass owner-1 and pass owner
     gap_time = np.bincount(owner[gap], weights=blocks.time_s[gap], minlength=n + 1)[:n]
     breaks = gap & (blocks.spindle_start | ~blocks.planned)
@@ -162,7 +164,7 @@ def commands(speeds: np.ndarray, blocks: schedule.Blocks, pid: np.ndarray) -> sc
     value[in_pass] = speeds[pid[in_pass]]
     fixed = ~blocks.planned
     value[fixed] = blocks.fixed_rpm[fixed]
-    cmd = schedule.ffill(schedule._bfill(value))
+    cmd = ffill(schedule._bfill(value))
     cmd = np.where(np.isnan(cmd), 0.0, cmd)
     before = np.concatenate(([cmd[0]], cmd[:-1]))
     low = np.where(in_pass, cmd, np.minimum(before, cmd))

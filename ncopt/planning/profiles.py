@@ -97,7 +97,7 @@ class Profiles:
     tools: dict = field(default_factory=dict)  # key (int T or str name) -> (Cutter, source)
     cutting: dict = field(default_factory=dict)  # name -> (CuttingData, source)
     default_machine: tuple | None = None  # (name, source)
-    sources: tuple = ()
+    sources: tuple[str, ...] = ()  # the files read, in order
 
     def machine(self, name: str) -> MachineProfile:
         if name not in self.machines:

@@ -38,7 +38,7 @@ Shares of the cut length weight each sample by the path length it stands for
 (trapezoid rule).
 
 Targets default to the program's own S and F at the nominal diameter
-(``ncopt.planning.plans.nominal_cutting_data``).  For a rewritten program pass the
+(``ncopt.planning.intent.nominal_cutting_data``).  For a rewritten program pass the
 original's targets in ``Job.cutting``: a rewrite's S words are planned
 speeds, not the nominal one.
 """
@@ -56,7 +56,7 @@ from ncopt.contacts.locate import path_contacts_at_samples
 from ncopt.model import Contacts, Job, Program, Toolpath
 from ncopt.motion.interp import interpret, tcp_of
 from ncopt.planning.inspection import JudgedOperation, judge_operations
-from ncopt.planning.plans import nominal_cutting_data
+from ncopt.planning.intent import nominal_cutting_data
 from ncopt.reading.dialect import detect
 from ncopt.reading.read import read_text
 from ncopt.runtime.errors import NcoptError, UsageError
@@ -93,7 +93,7 @@ def simulate_program(prog_text: str, job: Job, mesh_index: MeshIndex | None = No
     job : Job
         Machine, cutter (None: from the program's tool comments), targets
         (``job.cutting``; None: the program's own S and F at the nominal
-        diameter, ``ncopt.planning.plans.nominal_cutting_data``) and ``job.tool``, the one
+        diameter, ``ncopt.planning.intent.nominal_cutting_data``) and ``job.tool``, the one
         tool evaluated when the program cuts with several.
     mesh_index : MeshIndex or None
         The part; needed unless ``contacts`` are given.

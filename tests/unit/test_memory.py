@@ -129,13 +129,13 @@ def test_the_mesh_is_freed_once_the_contacts_are_found(monkeypatch, bowl_stl):
     from ncopt.model import Cutter, Machine
 
     alive, refs = [], []
-    real = api._targets
+    real = api.block_targets
 
     def spy(*a, **k):  # called right after the contacts
         gc.collect()
         alive.append(refs[0]() is not None)
         return real(*a, **k)
-    monkeypatch.setattr(api, "_targets", spy)
+    monkeypatch.setattr(api, "block_targets", spy)
 
     def load():
         index = MeshIndex(load_stl(bowl_stl))

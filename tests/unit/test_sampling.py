@@ -14,7 +14,7 @@ from hypothesis import given, strategies as st
 
 from ncopt.planning import schedule
 from ncopt.api import rewrite_text
-from ncopt.planning.plans import nominal_cutting_data
+from ncopt.planning.intent import nominal_cutting_data
 from ncopt.model import Job
 from ncopt.contacts.locate import (MAX_SAMPLES_PER_MOVE, _mesh_probe, contacts_for,
                             mesh_contacts_at_samples, path_contacts_at_samples, sample_points)
