@@ -50,6 +50,40 @@ def test_h_is_help_everywhere(command):
     assert "-h, --help" in short.stdout
 
 
+def test_help_lists_the_options_by_panel_with_their_choices():
+    out = invoke(["rewrite", "-h"]).stdout
+    heads = [ln[:-1] for ln in out.splitlines() if re.fullmatch(r"[A-Z]\w*:", ln)]
+    assert heads == ["Arguments", "Cutter", "Targets", "Machine", "Control", "Part",
+                     "Planning", "Output", "Options"]
+    for entry in ("--planner <lookahead|forward>", "--tool-point <tip|center>",
+                  "--s-changes <anywhere|between-passes>", "--color <auto|always|never>"):
+        assert entry in out
+    simulate = invoke(["simulate", "-h"]).stdout
+    assert "--color-by <s_rpm|f_mm_min|d_eff_mm|vc_m_min>" in simulate
+
+
+def test_the_color_by_choices_are_the_plots():
+    """Spelt for -h (the plots load numpy), checked against ncopt.report.plots itself."""
+    from typing import get_args
+
+    from ncopt.cli.replay import ColorBy
+    from ncopt.report.plots import COLOR_BY
+
+    assert get_args(ColorBy) == tuple(key for key, _ in COLOR_BY)
+
+
+@pytest.mark.parametrize("words, offered", [
+    ("ncopt rewrite p.nc --planner ", ["lookahead", "forward"]),
+    ("ncopt simulate p.nc --color-by d", ["d_eff_mm"]),
+    ("ncopt inspect p.nc --dialect s", ["sinumerik"]),
+])
+def test_the_shell_completes_a_choice(words, offered):
+    done = CliRunner().invoke(app, [], prog_name="ncopt", env={
+        "_NCOPT_COMPLETE": "complete_bash", "COMP_WORDS": words,
+        "COMP_CWORD": str(len(words.split()) - (0 if words.endswith(" ") else 1))})
+    assert done.stdout.split() == offered
+
+
 def test_version_both_ways():
     for args in (["--version"], ["version"]):
         result = invoke(args)
@@ -167,7 +201,7 @@ def test_the_distribution_name_is_ours_and_the_hints_install_this_project(monkey
     assert hints and all(re.match(r"""(?:-e )?["']?\.(?:\[\w+\])?["']?(?: |$)|ncopt-cnc|matplotlib""",
                                   h) for h in hints), hints
     prog, _ = pair
-    monkeypatch.setattr("ncopt.cli.app._has_matplotlib", lambda: False)
+    monkeypatch.setattr("ncopt.cli.replay._has_matplotlib", lambda: False)
     result = invoke(["simulate", prog, *SPINDLE, "--plot", "p.png"])
     assert result.exit_code == Exit.USAGE
     assert result.stderr == ("plots need matplotlib: python -m pip install matplotlib (or, in "

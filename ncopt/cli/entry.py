@@ -13,7 +13,7 @@ import os
 import sys
 from pathlib import Path
 
-DIFFERENT = 1  # the exit code of diff(1) for files that differ (ncopt.cli.app.DIFFERENT)
+DIFFERENT = 1  # the exit code of diff(1) for files that differ (ncopt.cli.core.DIFFERENT)
 
 
 def main() -> None:
@@ -51,12 +51,12 @@ def _quick_diff(argv: list[str]) -> int | None:
 
             silence_stdout()
         except OSError as exc:  # a full disk under stdout: reported as the command line does
-            from ncopt.cli.app import _exit_code
+            from ncopt.cli.core import exit_code
             from ncopt.runtime.stdio import say, stdout_fault
 
             fault = stdout_fault(exc)
             say(str(fault), error=True)
-            return int(_exit_code(fault))
+            return int(exit_code(fault))
     except KeyboardInterrupt:
         print("ncopt: interrupted", file=sys.stderr)
         return 130
