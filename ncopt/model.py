@@ -461,7 +461,7 @@ class PlanOptions:
         rounded down to it, which the fz band must absorb
     fz_policy : ``"centred"`` (default): F from the harmonic mean of the block's lowest and
         highest real spindle speed, so fz stays within +-fz_tolerance both ways;
-        ``"below"``: F from the lowest speed, so fz never exceeds its target (METHOD.md's
+        ``"below"``: F from the lowest speed, so fz never exceeds its target (docs/method.md's
         choice; it halves the speed change allowed per block)
     min_s_interval_ms : least time between two S words (Sinumerik acknowledges each S
         through the PLC): a rise waits; a fall, which vc needs, never waits and is counted

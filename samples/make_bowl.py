@@ -1,7 +1,7 @@
 """Generate the bowl-mould sample data: an analytic surface, its STL and a finishing program.
 
 The part imitates the bowl mould of the paper's machining test (Vavruska et al. 2023,
-sections 5-6; see ``/work/shared/METHOD.md``): a surface of revolution with a large, nearly
+sections 5-6; see docs/method.md): a surface of revolution with a large, nearly
 flat bottom, steep walls near the rim and a flat top land around it, finished with a D16
 ball-end mill (R = 8 mm, z = 2, vc = 70 m/min, fz = 0.1 mm -> S1393, F279) in zig-zag passes
 in the X-Z plane with the stepover along Y.

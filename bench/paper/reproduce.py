@@ -70,7 +70,8 @@ def run_wave(out: Path) -> list:
                 (f"{a:g} {p}", a, p) for a in (131, 227, 751) for p in ("forward", "lookahead")]:
             job = Job(cutter=Cutter(4.0, 2), machine=Machine(accel, NO_SMAX_RPM), cutting=target,
                       options=PlanOptions(planner=planner), method=Method(method, 0.2),
-                      stamp=False)
+                      stamp=False, operations=("all",))  # one pass: planned as asked
+                                                          # (ncopt leaves single passes alone)
             res = rewrite_text(text, job, "wave.ngc", index)
             rep, ser = simulate_program(res.text, job, index, path=label, sample_mm=0.05)
             rows.append((method, label, rep))

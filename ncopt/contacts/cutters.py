@@ -5,7 +5,7 @@ The tool axis ``e`` is a unit vector from the tip toward the spindle: +Z in
 radius ``R`` and a bull-nose (toroidal) mill of radius ``R`` with corner
 radius ``r`` are the same family: the ball is the case ``r == R``.
 
-Geometry (METHOD.md, "Effective cutting radius, contact-point method", the
+Geometry (docs/method.md, "The effective cutting radius", the
 paper's eq. (1)), with ``c = n . e`` (``nz`` in 3 axes):
 
 * ball: the CC point is ``SC - R n`` and its distance from the tool axis is

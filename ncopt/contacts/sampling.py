@@ -1,8 +1,8 @@
 """Where the planner queries the mesh: at every block end, and inside a block only where
 the geometry asks for it.
 
-A block's requirement is the lowest required speed anywhere along it (METHOD.md,
-"Pitfalls"): the largest effective radius ``R_eff`` along it, not only at its ends.
+A block's requirement is the lowest required speed anywhere along it (docs/method.md,
+"Contacts with a mesh"): the largest effective radius ``R_eff`` along it, not only at its ends.
 Sampling every move every millimetre makes the cost grow with the path length, misses
 what happens between samples of long blocks (on a wavy part with 6 mm blocks, 1 mm
 samples put the requirement 1.9 % above the one every 0.1 mm gives) and lets a single

@@ -7,7 +7,7 @@ window of blocks: the operation's own (its cuts and the link moves of its run, s
 starts from where it really is), and the first fixed block after it where the program's
 own S must be back in force.  Blocks that a later operation owns are left to that one.
 
-Feeds keep the CAM's intent (METHOD.md plans one cutting feed): only the blocks at the
+Feeds keep the CAM's intent (docs/method.md plans one cutting feed): only the blocks at the
 operation's cutting feed follow the fz target; a plunge (at any feed), or a ramp,
 lead-in or link at another feed, is scaled with the spindle (``F = F_prog * S_low / S_prog``:
 its feed per tooth stays the programmed one and never rises).

@@ -2,12 +2,12 @@
 
 Works on *blocks* (source lines that move), because a control applies S and
 F per block.  Units: S in RPM, lengths in mm, F in mm/min, accelerations in
-RPM/s.  The constraint of METHOD.md, |d(S^2)/ds| <= K = 2*60*a/(fz*z), is
+RPM/s.  The constraint of docs/method.md ("The spindle limit"), |d(S^2)/ds| <= K = 2*60*a/(fz*z), is
 applied per block as |S_b^2 - S_(b-1)^2| <= K*L_b, so the ramp of a block
 finishes inside it while F stays constant (:mod:`ncopt.planning.spindle`: the
 blocks and these limits; :mod:`ncopt.planning.emission`: the profile's S words).
 
-Deviation from METHOD.md, and why: a block's speed S_b is applied at its
+Deviation from docs/method.md, and why: a block's speed S_b is applied at its
 start and the spindle ramps from S_(b-1) during the block, so the spindle
 runs between both values inside block b.  vc therefore stays at or below its
 target only if *both* are at most the block's requirement: the look-ahead

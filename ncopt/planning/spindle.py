@@ -2,7 +2,7 @@
 
 Works on *blocks* (source lines that move), because a control applies S and F per
 block.  Units: S in RPM, lengths in mm, F in mm/min, accelerations in RPM/s.  The
-spindle's limit of METHOD.md, |d(S^2)/ds| <= K = 2*60*a/(fz*z), is applied per block
+spindle's limit of docs/method.md, |d(S^2)/ds| <= K = 2*60*a/(fz*z), is applied per block
 as |S_b^2 - S_(b-1)^2| <= K*L_b (:func:`increments`); the fz band bounds the ratio of
 the real speeds within one block (:func:`max_speed_ratio`).
 """

@@ -3,7 +3,7 @@
 Replays any program (the original, an ncopt rewrite, or one written by hand)
 on a model of the machine, from the program text alone: parse -> interpret ->
 contacts.  Nothing the planner computed is reused, so the simulation checks
-the planner rather than repeating it (METHOD.md, "Checking the result").
+the planner rather than repeating it (docs/method.md, "Checking the result").
 
 Machine model
 -------------

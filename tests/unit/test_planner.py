@@ -1,6 +1,6 @@
 """ncopt.planning.schedule: closed-form profiles, the forward planner's overshoot, _two_way_min.
 
-The spindle limit of METHOD.md in the planner's per-block form: during cutting block b the
+The spindle limit of docs/method.md in the planner's per-block form: during cutting block b the
 spindle goes from S_(b-1) to S_b with |S_b^2 - S_(b-1)^2| <= K L_b,
 K = 2 * 60 * a / (fz z) with a in RPM/s.
 """

@@ -66,7 +66,7 @@ def test_center_offset():
 
 
 def test_required_rpm_matches_the_paper_d16_example():
-    # D16 ball at full radius, vc 70 m/min -> S 1392.6 (METHOD.md)
+    # D16 ball at full radius, vc 70 m/min -> S 1392.6 (docs/method.md)
     assert required_rpm(np.array([8.0]), 70.0)[0] == pytest.approx(1392.6, abs=0.05)
 
 
