@@ -24,7 +24,7 @@ from ncopt.reading.expr import Params, Unknown
 from ncopt.motion.feedmode import G93, G95, tip_feed_mm_min
 from ncopt.model import Job, LineKind, LineState, Program, Toolpath
 from ncopt.motion.orientation import Orientation, lean_toward_travel, read_orientation, with_tool_axis
-from ncopt.reading.parse import unread_lines_warning
+from ncopt.reading.tapemarks import unread_lines_warning
 from ncopt.motion.planes import after_keyword
 from ncopt.motion.modal import (
     CANNED, FLOW_CONTROL, G_ARC_DISTANCE, G_COMP, G_DISTANCE, G_FEED_MODE, G_MODES_NOT_READ, G_MOTION, G_NON_MODAL_MOVE, G_NOT_A_TARGET, G_OTHER_MOVES, G_PLANE, G_POLE, G_READ, G_SCALE_OFF, G_SCALE_ON, G_SPLINE, G_UNITS, G_WORK_OFFSETS, HARMLESS_OPAQUE, INCH_HEADER, KW_FRAME_RESET, KW_SCALE, SCALED_WHY, ffill, row_norms,
