@@ -13,7 +13,8 @@ import numpy as np
 
 from ncopt.model import VECTOR_WORD_CODES
 from ncopt.reading.grammar import DIGIT, LETTER, NL, OTHER, POINT, SIGN, SPACE, address_patterns
-from ncopt.reading.numtext import EXACT_DIGITS, MAX_NUMBER_CHARS, number_values, parse_numbers, run_sums
+from ncopt.reading.numtext import (EXACT_DIGITS, MAX_NUMBER_CHARS, number_values, parse_numbers,
+                                   run_sums)
 from ncopt.runtime.memory import release_freed_memory, working_memory
 from ncopt.runtime.threads import available_cpus, map_in_threads
 

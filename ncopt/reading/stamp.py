@@ -17,7 +17,8 @@ import numpy as np
 
 from ncopt import __version__
 from ncopt.model import Cutter, CuttingData, Edit, LineKind, Program
-from ncopt.reading.stampline import INFO_BODY, STAMP_LINE, STAMP_START  # noqa: F401 (STAMP_LINE re-exported)
+from ncopt.reading.stampline import STAMP_LINE  # noqa: F401 (re-exported)
+from ncopt.reading.stampline import INFO_BODY, STAMP_START
 
 # The stamp, in the program's comment syntax, every line at most STAMP_WIDTH characters:
 #
@@ -64,7 +65,7 @@ class Stamp:
     cutting: CuttingData
     cutter: Cutter
     line: int  # 0-based, its first line
-    lines: tuple | None = None
+    lines: tuple[int, int] | None = None
     band_pct: float | None = None
     s0_rpm: float = 0.0  # the operation's own S and cutting feed before ncopt (S0=0: the
     f0_mm_min: float = 0.0  # program gave no S); F0 0: not stamped
@@ -75,8 +76,8 @@ class Stamps(dict):
     0-based line of the stamp block (its header lines too), sorted; ``spindle``: the
     (accel rad/s^2, max RPM) of the machine it was planned for (None: not stamped)."""
 
-    lines: list = []
-    spindle: tuple | None = None
+    lines: list[int] = []
+    spindle: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,6 @@ from ncopt.model import LineKind, Program
 from ncopt.reading.dialect import LINUXCNC
 from ncopt.reading.refuse import refuse_at
 
-
 _TAPE_MARK = re.compile(r"(?m)^[ \t]*(?:[Nn][0-9.]*[ \t]*)?%")
 # what may stand before the opening '%': a header of blank lines, tape leader (NULs,
 # DELs) and comment lines, ( ) or ';' (a CAM system's "(PROGRAM FROM FUSION)")
