@@ -18,12 +18,11 @@ def arc_points(prog, lines, modal, i, p0, p1, tol_mm):
     """Points and exact lengths of the arc on line i from p0 to p1 (mm)."""
     a, b, c = _PLANE_AXES.get(int(modal.plane[i]), (0, 1, 2))
     scale = MM_PER_INCH if modal.inch[i] else 1.0
-    offs = {k: lines.value(k)[i] * scale for k in "IJK"}
-    off = np.nan_to_num(np.array([offs["I"], offs["J"], offs["K"]]))
-    has_ijk = any(lines.present(k)[i] for k in "IJK")
+    off = np.nan_to_num(np.array([lines.value_at(k, i) * scale for k in "IJK"]))
+    has_ijk = any(lines.present_at(k, i) for k in "IJK")
     cw = modal.motion[i] == 20
-    if lines.present("R")[i] and not has_ijk:
-        center = _center_from_r(prog, i, modal, p0, p1, lines.value("R")[i] * scale, cw, a, b)
+    if lines.present_at("R", i) and not has_ijk:
+        center = _center_from_r(prog, i, modal, p0, p1, lines.value_at("R", i) * scale, cw, a, b)
     elif has_ijk:
         center = off.copy() if modal.arc_absolute[i] else p0 + off
     else:
@@ -46,7 +45,7 @@ def arc_points(prog, lines, modal, i, p0, p1, tol_mm):
     sweep %= 2 * math.pi
     if sweep < 1e-12:
         sweep = 2 * math.pi
-    turns = lines.value("P")[i]
+    turns = lines.value_at("P", i)
     if not np.isnan(turns) and turns > 1:
         sweep += 2 * math.pi * (int(turns) - 1)
     r = max(r0, 1e-9)

@@ -50,6 +50,18 @@ class LineTable:
     def present(self, letter: str) -> np.ndarray:
         return self.letters[letter][1] if letter in self.letters else np.zeros(self.n, bool)
 
+    def value_at(self, letter: str, i: int) -> float:
+        """The value of ``letter`` on line ``i`` (NaN where it has none): for code that
+        walks lines one by one, where :meth:`value` of a letter the program lacks would
+        build a whole column each time."""
+        column = self.letters.get(letter)
+        return column[0][i] if column is not None else np.nan
+
+    def present_at(self, letter: str, i: int) -> bool:
+        """Whether line ``i`` holds ``letter`` (see :meth:`value_at`)."""
+        column = self.letters.get(letter)
+        return bool(column[1][i]) if column is not None else False
+
     def present_any(self, letters: str) -> np.ndarray:
         """(n,) bool: the line holds a word of any of ``letters``."""
         out = np.zeros(self.n, dtype=bool)
