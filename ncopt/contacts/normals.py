@@ -13,7 +13,6 @@ from ncopt.contacts.closest import Closest
 from ncopt.contacts.meshindex import MeshIndex
 from ncopt.contacts.rows import cross3, dot, dot3, unit
 
-
 NORMAL_METHODS = ("smooth", "phong", "center", "facet")
 
 

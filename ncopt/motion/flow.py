@@ -65,6 +65,7 @@ def evaluate(prog: Program, skip: np.ndarray | None = None):
             params.values[key] = value
     return values, poisoned, warnings
 
+
 _OWORD = re.compile(r"\s*/?\s*(?:N[0-9.]+\s*)?O\s*(?:<[^>]*>|[0-9]+|#<[^>]*>|#[0-9]+)\s*"
                     r"([A-Za-z]+)", re.IGNORECASE)
 

@@ -15,8 +15,9 @@ from ncopt.motion.modal import G_READ
 class LineTable:
     """Per-line word values, NaN where a line has no such word.
 
-    ``axis[c]`` (n_lines,) float64 for each letter c present in the program;
-    ``g``/``m`` list the G and M codes (x10, int) with their lines.
+    ``letters[c]``: (values (n_lines,) float64, present (n_lines,) bool) for each letter
+    c in the program; ``g_line``/``g_code`` and ``m_line``/``m_code``: the G and M codes
+    (G x10, int) with their lines.
     """
 
     def __init__(self, prog: Program, values: np.ndarray) -> None:
