@@ -24,7 +24,7 @@ _lock = threading.Lock()
 def cKDTree(*args, **kwargs):
     """``scipy.spatial.cKDTree(*args, **kwargs)`` (waits for a prefetch under way:
     Python's import lock makes a second import of a module wait for the first)."""
-    from scipy.spatial import cKDTree as tree
+    from scipy.spatial import cKDTree as tree  # deferred: see the module docstring
     return tree(*args, **kwargs)
 
 
@@ -55,6 +55,6 @@ def load() -> None:
     that is there anyway (a mesh's loading thread once the mesh is built, the main thread
     while it waits for the mesh) instead of one of its own beside them."""
     try:
-        import scipy.spatial  # noqa: F401
+        import scipy.spatial  # noqa: F401 (the import is the point: module docstring)
     except Exception:  # the caller's own import raises it again, where it is needed
         pass

@@ -147,7 +147,7 @@ def _same_bits(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def _stl_mode(path: Path):
     """Binary or ASCII (numpy-stl's ``Mode``), checked against the file size (numpy-stl
     is lenient)."""
-    from stl import Mode
+    from stl import Mode  # numpy-stl: imported when a mesh is read (~30 ms)
     size = path.stat().st_size
     with path.open("rb") as fh:
         head = fh.read(84)

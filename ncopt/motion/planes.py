@@ -39,11 +39,6 @@ _TILT_WORDS = re.compile(r"\b[XY]\s*=|\bRPL\s*=", re.IGNORECASE)
 _NUMBER = re.compile(r"\s*[+-]?(?:\d+\.?\d*|\.\d+)\s*$")
 
 
-def _ffill(values, initial=np.nan):
-
-    return ffill(values, initial)
-
-
 def frames(prog, lines, modal, executed, keywords, rotary, r):
     """The tilted working plane in force per line.
 
@@ -55,7 +50,7 @@ def frames(prog, lines, modal, executed, keywords, rotary, r):
     state = np.full(n, np.nan)  # per setting line: reason code (> 0), 0 reset, -(k+1) plane k
     on = lines.has_g(G_FRAME_ON) & executed
     rot = lines.has_g({G_ROTATION}) & executed
-    tilting_68 = rot & (lines.present("I") | lines.present("J") | lines.present("K")
+    tilting_68 = rot & (lines.present_any("IJK")
                         | (modal.plane != 170))
     frames = []
     for i in np.flatnonzero(on | tilting_68).tolist():
@@ -82,7 +77,7 @@ def frames(prog, lines, modal, executed, keywords, rotary, r):
             state[i] = 0.0
     state[lines.has_g(G_FRAME_OFF) & executed & np.isnan(state)] = 0.0
     state[lines.has_m({2, 30}) & executed] = 0.0
-    state = _ffill(state, 0.0)
+    state = ffill(state, 0.0)
     frame = np.where(state < 0, -state - 1, -1).astype(np.int32)
     why = np.where(state > 0, state, 0).astype(np.int16)
     why[(frame >= 0) & ~_aligned(lines, executed, state, rotary)] = r.code(

@@ -2,9 +2,8 @@
 
 ``inspect``, ``rewrite``, ``batch`` and ``simulate`` all report the *cutting time* as
 the time of every feed move (G1, G2, G3) whose start and end the interpreter knows, at
-its programmed F (capped at the machine's highest feed when one is known), and the
-*rapid time* as the known G0 moves at the machine's rapid rate.  Moves from an unknown
-position (after G28, a subprogram call...) and per-revolution feeds (G95) are not
+its programmed F (capped at the machine's highest feed when one is known).  Moves from an
+unknown position (after G28, a subprogram call...) and per-revolution feeds (G95) are not
 timed; the count of such moves is reported instead.  An inverse-time (G93) move is
 timed by the tip feed its F stands for (``ncopt.motion.feedmode``): its block lasts 1 / F
 minutes, a rotary-only one too.
@@ -35,13 +34,6 @@ def feed_minutes(tp: Toolpath, feed_mm_min: np.ndarray | None = None,
         turn = timed & tp.inverse_time & (tp.seg_len_mm == 0)
         out[turn] = 1.0 / f[turn]
     return out
-
-
-def rapid_minutes(tp: Toolpath, rapid_mm_min: float) -> np.ndarray:
-    """(n,) minutes of each known rapid move (0 elsewhere)."""
-    timed = (tp.motion == Motion.RAPID) & tp.known
-    timed[0] = False
-    return np.where(timed, tp.seg_len_mm / max(rapid_mm_min, 1e-9), 0.0)
 
 
 def untimed_moves(tp: Toolpath) -> int:

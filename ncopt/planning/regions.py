@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ncopt.model import LineKind, Motion, Program, Toolpath
-from ncopt.motion.orientation import tcp_switches
+from ncopt.motion.tcp import tcp_switches
 from ncopt.planning.schedule import BlockIndex
 
 S_CODE, F_CODE = ord("S"), ord("F")

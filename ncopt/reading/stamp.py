@@ -17,7 +17,8 @@ import numpy as np
 
 from ncopt import __version__
 from ncopt.model import Cutter, CuttingData, Edit, LineKind, Program
-from ncopt.reading.stampline import STAMP_BODY, STAMP_LINE  # noqa: F401 (re-exported)
+from ncopt.reading.stampline import STAMP_LINE  # noqa: F401 (re-exported)
+from ncopt.reading.stampline import INFO_BODY, STAMP_START
 
 # The stamp, in the program's comment syntax, every line at most STAMP_WIDTH characters:
 #
@@ -34,21 +35,20 @@ from ncopt.reading.stampline import STAMP_BODY, STAMP_LINE  # noqa: F401 (re-exp
 # of ncopt before this form are one line per operation (or per tool, ncopt 0.1) and are
 # still read: ``(ncopt 0.2.0 T4 lines=15-3800 vc=70.0198 fz=0.100144 D=16mm r=8mm z=2 ...)``.
 STAMP_WIDTH = 72
-_OLD = re.compile(r"^\s*(?:\(|;)\s*ncopt (?P<version>\S+) T(?P<tool>-?\d+)"
+_OLD = re.compile(STAMP_START + r"(?P<version>\S+) T(?P<tool>-?\d+)"
                   r"(?: lines=(?P<a>\d+)-(?P<b>\d+))? "
                   r"vc=(?P<vc>[\d.]+) fz=(?P<fz>[\d.]+) D=(?P<d>[\d.]+)(?:mm)? "
                   r"r=(?P<r>[\d.]+)(?:mm)? z=(?P<z>\d+)(?P<rest>[^)]*)\)?\s*$")
 _BAND = re.compile(r"\bband=(?P<band>[\d.]+)")
 _INTENT = re.compile(r"\bS0=(?P<s0>[\d.]+) F0=(?P<f0>[\d.]+)")
-_OP_A = re.compile(r"^\s*(?:\(|;)\s*ncopt T(?P<tool>-?\d+|\?) lines=(?P<a>\d+)-(?P<b>\d+) "
+_OP_A = re.compile(STAMP_START + r"T(?P<tool>-?\d+|\?) lines=(?P<a>\d+)-(?P<b>\d+) "
                    r"vc=(?P<vc>[\d.]+) fz=(?P<fz>[\d.]+)(?: band=(?P<band>[\d.]+))?\s*\)?\s*$")
-_OP_B = re.compile(r"^\s*(?:\(|;)\s*ncopt T(?P<tool>-?\d+|\?) D=(?P<d>[\d.]+)mm "
+_OP_B = re.compile(STAMP_START + r"T(?P<tool>-?\d+|\?) D=(?P<d>[\d.]+)mm "
                    r"r=(?P<r>[\d.]+)mm z=(?P<z>\d+)(?: S0=(?P<s0>[\d.]+) "
                    r"F0=(?P<f0>[\d.]+)mm/min)?\s*\)?\s*$")
-_INFO = re.compile(r"^\s*(?:\(|;)\s*ncopt (?:\d\S* \d{4}-\d\d-\d\d: |from |machine |"
-                   r"cutting time )")
-_FROM = re.compile(r"^\s*(?:\(|;)\s*ncopt from ")
-_MACHINE = re.compile(r"^\s*(?:\(|;)\s*ncopt machine ")
+_INFO = re.compile(STAMP_START + INFO_BODY)
+_FROM = re.compile(STAMP_START + "from ")
+_MACHINE = re.compile(STAMP_START + "machine ")
 _SPINDLE = re.compile(r"\bncopt machine (?:.*: )?(?P<accel>[\d.]+) rad/s2, (?P<rpm>[\d.]+) RPM")
 
 
@@ -65,7 +65,7 @@ class Stamp:
     cutting: CuttingData
     cutter: Cutter
     line: int  # 0-based, its first line
-    lines: tuple | None = None
+    lines: tuple[int, int] | None = None
     band_pct: float | None = None
     s0_rpm: float = 0.0  # the operation's own S and cutting feed before ncopt (S0=0: the
     f0_mm_min: float = 0.0  # program gave no S); F0 0: not stamped
@@ -76,8 +76,8 @@ class Stamps(dict):
     0-based line of the stamp block (its header lines too), sorted; ``spindle``: the
     (accel rad/s^2, max RPM) of the machine it was planned for (None: not stamped)."""
 
-    lines: list = []
-    spindle: tuple | None = None
+    lines: list[int] = []
+    spindle: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
