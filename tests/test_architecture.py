@@ -4,6 +4,7 @@ import inside a function cannot hide one), and the stages import only downward
 
 from __future__ import annotations
 
+import ast
 import sys
 from pathlib import Path
 
@@ -67,3 +68,27 @@ def test_a_planted_cycle_is_found():
 def test_the_stages_import_only_downward(monkeypatch):
     monkeypatch.chdir(ROOT)
     assert importlinter_cli.lint_imports(config_filename=str(ROOT / "pyproject.toml")) == 0
+
+
+MAX_MODULE_LINES = 600
+MAX_FUNCTION_LINES = 80
+
+
+def _sizes():
+    """(module lines over the limit, functions over the limit) in the package."""
+    big_modules, long_functions = [], []
+    for path in sorted((ROOT / "ncopt").rglob("*.py")):
+        text = path.read_text(encoding="utf-8")
+        rel = path.relative_to(ROOT).as_posix()
+        if len(text.splitlines()) > MAX_MODULE_LINES:
+            big_modules.append((rel, len(text.splitlines())))
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                length = node.end_lineno - node.lineno + 1
+                if length > MAX_FUNCTION_LINES:
+                    long_functions.append((rel, node.name, length))
+    return big_modules, long_functions
+
+
+def test_no_module_over_600_lines_and_no_function_over_80():
+    assert _sizes() == ([], [])

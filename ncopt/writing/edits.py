@@ -16,9 +16,49 @@ import numpy as np
 
 from ncopt.runtime.errors import VerificationError
 from ncopt.runtime.memory import release_freed_memory
-from ncopt.model import Edits, LineKind, Program
+from ncopt.model import Edit, LineKind, Program
 
 S_CODE, F_CODE = ord("S"), ord("F")
+
+
+@dataclass(frozen=True, eq=False)
+class Edits:
+    """Many edits as columns (a rewrite makes ~1M; one object each would cost seconds).
+
+    start, end : (k,) int64 character offsets; text : k replacement strings;
+    s_words, f_words : how many S and F words the edits write (an appended
+    ``" S1500 F300"`` writes one of each).
+    """
+
+    start: np.ndarray
+    end: np.ndarray
+    text: list
+    s_words: int = 0
+    f_words: int = 0
+
+    @staticmethod
+    def of(edits=(), s_words: int = 0, f_words: int = 0) -> "Edits":
+        """From single :class:`Edit` s (or ``(start, end, text)`` tuples)."""
+        edits = list(edits)
+        return Edits(np.array([e[0] for e in edits], dtype=np.int64),
+                     np.array([e[1] for e in edits], dtype=np.int64),
+                     [e[2] for e in edits], s_words, f_words)
+
+    def __len__(self) -> int:
+        return len(self.text)
+
+    def __getitem__(self, i: int) -> Edit:
+        return Edit(int(self.start[i]), int(self.end[i]), self.text[i])
+
+    def __iter__(self):
+        return map(Edit, self.start.tolist(), self.end.tolist(), self.text)
+
+    def __add__(self, other) -> "Edits":
+        if not isinstance(other, Edits):
+            other = Edits.of(other)
+        return Edits(np.concatenate((self.start, other.start)),
+                     np.concatenate((self.end, other.end)), self.text + other.text,
+                     self.s_words + other.s_words, self.f_words + other.f_words)
 
 
 @dataclass(frozen=True)
