@@ -12,7 +12,9 @@ from __future__ import annotations
 import numpy as np
 
 from ncopt.model import VECTOR_WORD_CODES
-from ncopt.reading.grammar import DIGIT, LETTER, NL, OTHER, POINT, SIGN, SPACE, address_patterns
+from ncopt.reading.fastcomments import CommentForms, mark_comments
+from ncopt.reading.grammar import (DIGIT, LETTER, NL, OTHER, POINT, SEP, SIGN, SLASH, SPACE,
+                                   address_patterns)
 from ncopt.reading.numtext import (EXACT_DIGITS, MAX_NUMBER_CHARS, number_values, parse_numbers,
                                    run_sums)
 from ncopt.runtime.memory import release_freed_memory, working_memory
@@ -98,7 +100,7 @@ def vector_codes(words, address_at):
 FAST_CHUNK_LINES = 16384
 
 
-def fast_path_chunked(raw, line_start, content_end, classes):
+def fast_path_chunked(raw, line_start, content_end, classes, comments: CommentForms):
     """:func:`_fast_path` over chunks of lines, results joined (same words, less memory).
 
     The chunks run in a pool of threads: the work is numpy loops over bytes, which
@@ -106,13 +108,13 @@ def fast_path_chunked(raw, line_start, content_end, classes):
     """
     n_lines = line_start.shape[0] - 1
     if n_lines <= FAST_CHUNK_LINES:
-        return _fast_path(raw, line_start, content_end, classes)
+        return _fast_path(raw, line_start, content_end, classes, comments)
 
     def chunk(a: int):
         b = min(a + FAST_CHUNK_LINES, n_lines)
         base = int(line_start[a])
         f, bl, w = _fast_path(raw[base:int(line_start[b])], line_start[a:b + 1] - base,
-                              content_end[a:b] - base, classes)
+                              content_end[a:b] - base, classes, comments)
         return f, bl, (w[0] + a, w[1], w[2], w[3] + base, w[4] + base, w[5] + base)
 
     with working_memory():  # each chunk's temporaries reuse the freed ones of the last
@@ -134,10 +136,11 @@ def fast_path_chunked(raw, line_start, content_end, classes):
 _THREADS = min(2, available_cpus())
 
 
-def _fast_path(raw, line_start, content_end, classes):
+def _fast_path(raw, line_start, content_end, classes, comments: CommentForms):
     """Vectorised word extraction for lines of only LETTER SNUMBER pairs.
 
-    ``classes`` is the (256,) byte class table of the grammar.  Returns
+    ``classes`` is the (256,) byte class table of the grammar, ``comments`` the comments
+    it reads (:mod:`ncopt.reading.fastcomments`: they separate words, hold none).  Returns
     (fast (n,) bool, blank (n,) bool, words) where words is a tuple of
     arrays (line, letter, value, start, end, num_start) for the fast lines.
     """
@@ -149,16 +152,19 @@ def _fast_path(raw, line_start, content_end, classes):
     tail = line_start[1:] - content_end
     for k in range(int(tail.max()) if n_lines else 0):
         cls[content_end[tail > k] + k] = NL
+    mark_comments(cls, raw, line_start, content_end, comments)
     bad = np.zeros(n_lines, dtype=bool)
     bad[line_of[cls == OTHER]] = True
     idx = np.flatnonzero((cls != SPACE) & (cls != NL) & (cls != OTHER))
     cc, ln = cls[idx], line_of[idx]
     is_letter = cc == LETTER
-    is_num = ~is_letter
+    is_sep = cc >= SEP  # a comment or the block delete mark: no word, a separator
+    is_num = ~is_letter & ~is_sep
     same_prev = np.zeros(idx.shape[0], dtype=bool)
     same_prev[1:] = ln[1:] == ln[:-1]
     has_tok = np.zeros(n_lines, dtype=bool)
-    has_tok[ln[~same_prev]] = True  # the first token of each line that has one
+    has_tok[ln[~is_sep]] = True  # lines with a word token (a comment alone: a blank line)
+    bad[ln[(cc == SLASH) & same_prev]] = True  # block delete only first on the line
     prev_num = np.zeros_like(same_prev)
     prev_num[1:] = is_num[:-1]
     run_start = is_num & ~(same_prev & prev_num)

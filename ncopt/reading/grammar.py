@@ -16,6 +16,7 @@ from ncopt.runtime.errors import UsageError
 
 # byte classes of the fast path
 SPACE, LETTER, DIGIT, SIGN, POINT, NL, OTHER = range(7)
+SEP, SLASH = 7, 8  # a comment's first byte; a block delete mark first on its line
 
 
 def grammar_path(name: str = "generic.lark") -> Path:

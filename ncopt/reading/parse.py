@@ -34,6 +34,7 @@ from ncopt.model import LineKind, Program
 from ncopt.reading.dialect import read_unit_codes
 from ncopt.reading.fastpath import (before_block_end, fast_path_chunked, split_lines, vector_codes,
                                     vector_words_read_plain)
+from ncopt.reading.fastcomments import comment_forms
 from ncopt.reading.grammar import byte_classes, dialect_name, fast_tables, grammar_path, parser
 from ncopt.reading.lineparse import parse_slow_lines
 from ncopt.reading.refuse import check_text
@@ -83,7 +84,8 @@ def parse_text(text: str, path: str = "<input>", *, dialect: str | None = None,
     scan, address_at = vector_words_read_plain(text, raw, line_start, content_end, name)
     fast, blank, words = fast_path_chunked(scan, line_start,
                                            before_block_end(raw, line_start, content_end,
-                                                            block_end), classes)
+                                                            block_end), classes,
+                                           comment_forms(name))
     if address_at is not None:
         words = vector_codes(words, address_at)
     trailer = np.arange(n_lines) >= trailer_start(text, line_start, name, path)

@@ -402,3 +402,71 @@ def test_generic_is_the_default_grammar(dialect):
 def test_unknown_dialect_is_a_usage_error():
     with pytest.raises(UsageError, match="unknown dialect 'haas'; use one of sinumerik, fanuc"):
         parse_text("G1 X1\n", dialect="haas")
+
+
+# ------------------------------------------ comments and block delete on the fast path ----
+COMMENT_TEXT = st.text(st.sampled_from("abcXYZ019 .,:*;=#[]-+/"), max_size=12)
+
+
+@st.composite
+def commented_lines(draw, eol: bool):
+    """A word block with ( ) comments between its words, maybe a leading block delete mark
+    and, where the grammar reads them, a ';' comment at its end."""
+    _, expected = draw(word_lines())
+    out = []
+    for tok in (w[2] for w in expected):  # each word's own text ("X 1.5" stays whole)
+        out.append(tok)
+        if draw(st.booleans()):
+            out.append("(" + draw(COMMENT_TEXT).replace("(", "").replace(")", "") + ")")
+    text = " ".join(out)
+    if draw(st.booleans()):
+        text = draw(st.sampled_from(["/", " /", "/ "])) + text
+    if eol and draw(st.booleans()):
+        text += draw(st.sampled_from([";", " ;", " ; "])) + draw(COMMENT_TEXT)
+    return text
+
+
+@pytest.mark.parametrize("dialect", GRAMMARS)
+@settings(max_examples=150)
+@given(data=st.data(), newline=st.sampled_from(["\n", "\r\n"]))
+def test_commented_word_lines_read_the_same_on_both_paths(dialect, data, newline):
+    from ncopt.reading.fastcomments import comment_forms
+    from ncopt.reading.grammar import dialect_name
+
+    eol = comment_forms(dialect_name(dialect)).eol
+    lines = data.draw(st.lists(commented_lines(eol), min_size=1, max_size=5))
+    text = newline.join(lines) + newline
+    prog = both_paths(text, dialect=dialect)
+    assert not isinstance(prog, NcParseError), (text, prog)
+
+
+@pytest.mark.parametrize("dialect", ["sinumerik", "linuxcnc", "heidenhain-iso", None])
+@pytest.mark.parametrize("comment", [" ; PASS 3", " (PASS 3)", " (a) (b)"])
+def test_the_fast_path_takes_commented_blocks(dialect, comment):
+    """Lark reads none of a program whose every block carries a comment or a block
+    delete mark (a few milliseconds a line there; microseconds here)."""
+    end = " *" if dialect == "heidenhain-iso" else ""
+    blocks = [f"N{10 * i} G1 X{i * 0.5:.3f} Y-{i:d}.25 F800{comment}{end}" for i in range(1, 400)]
+    blocks += [f"/N{10 * i} X{i}{end}" for i in range(400, 420)]
+    blocks += ["(a comment alone)", "; a comment alone" if dialect != "fanuc" else "(x)"]
+    text = "\n".join(blocks) + "\n"
+    calls = []
+    prog = parse_text(text, dialect=dialect, progress=calls.append)
+    assert calls == []
+    reference = parse_text(text, dialect=dialect, use_fast_path=False)
+    assert np.array_equal(prog.word_value, reference.word_value)
+    assert np.array_equal(prog.word_start, reference.word_start)
+    assert np.array_equal(prog.line_kind, reference.line_kind)
+    assert prog.line_kind[-2:].tolist() == [LineKind.BLANK, LineKind.BLANK]
+
+
+def test_comments_that_do_not_pair_up_go_to_lark():
+    """'( ... ; ... )' before a ';', an unclosed '(', a stray ')': left to the grammar."""
+    for line, words in (("G1 X1 (a ; b) Y2", 3), ("G1 X1 (a", None), ("G1 X1 a)", None)):
+        calls = []
+        try:
+            prog = parse_text(line + "\n", progress=calls.append)
+        except NcParseError:
+            assert words is None, line
+            continue
+        assert calls == [0] and prog.n_words == words, line
