@@ -8,8 +8,7 @@ and a rewrite starts the import in a thread while the program is parsed: most of
 the parse is numpy work that releases the GIL.  A rewrite that loads a mesh imports
 it instead (:func:`load`) in the mesh's thread once the mesh is built, or in the main
 thread if that has to wait for the mesh first: an import holds the GIL, and a third busy
-thread on two cores often holds it while it waits for a core (bench/README.md, issue 14,
-eighth round).
+thread on two cores often holds it while it waits for a core.
 """
 
 from __future__ import annotations

@@ -38,13 +38,9 @@ A rewrite also asks numpy not to mark its arrays for transparent huge pages
 (:func:`small_pages`).  numpy does that for every array of 4 MB or more where the kernel's
 setting is ``madvise`` (its ``NUMPY_MADVISE_HUGEPAGE``, see numpy's "global state").  On
 the 2-core machine a huge page costs more to fault in than the 512 small pages it
-replaces: the dense 1M-block case without the mesh faulted 516 huge pages (1 GB) and 183k
-small ones with numpy's default, 407k small ones without (``/proc/vmstat``; no compaction
-stalls either way).  Three alternating pairs of whole processes with numpy's variable at 1
-and at 0, dense case: without the mesh 7.61-8.40 -> 7.03-7.10 s, system time 1.44-1.60 ->
-0.78-0.87 s; with it 11.76-12.65 -> 11.49-11.67 s, system time 2.24-2.49 -> 1.51-1.60 s;
-user time and peak RSS the same (``bench/README.md``, seventh round, has the pairs of the
-change itself).
+replaces: on the dense 1M-block case it faulted about a gigabyte of huge pages and cost
+system time for nothing (measured with ``/proc/vmstat`` and alternating runs; the figures
+are in the history of bench/README.md).
 """
 
 from __future__ import annotations
