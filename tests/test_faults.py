@@ -232,3 +232,20 @@ def test_stale_temporaries_of_a_killed_run_are_removed_by_the_next(prog, tmp_pat
     result = run(["rewrite", prog, *SPINDLE, "-o", tmp_path / "o.nc", "-q"], tmp_path)
     assert result.returncode == 0, result.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["dome.nc", "o.nc"]
+
+
+# --------------------------------------------------------------------- memory ----
+def test_running_out_of_memory_is_one_line_exit_10_and_nothing_written(prog, tmp_path,
+                                                                        monkeypatch):
+    """A program larger than the memory the machine gives the run (a 5M-block mould
+    program under a 2 GB limit): a located line that says what to do, not a traceback."""
+    def no_memory(*args, **kwargs):
+        raise MemoryError("Unable to allocate 12.8 MiB for an array")
+
+    monkeypatch.setattr("ncopt.api.plan_program", no_memory)
+    out = tmp_path / "out.nc"
+    result = invoke(["rewrite", prog, *SPINDLE, "-o", out])
+    assert result.exit_code == Exit.MEMORY == 10
+    assert "not enough memory to finish" in result.stderr
+    assert "split the program" in result.stderr
+    assert not out.exists()

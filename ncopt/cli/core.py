@@ -20,7 +20,7 @@ import typer
 from typer.core import TyperCommand, TyperGroup
 
 from ncopt import __version__
-from ncopt.runtime.errors import (FileError, MeshError, NcoptError, NcParseError,
+from ncopt.runtime.errors import (FileError, MeshError, OutOfMemory, NcoptError, NcParseError,
                                   PlanningError, UsageError, VerificationError)
 from ncopt.runtime.stdio import command_faults, say, set_color, write_stdout
 
@@ -38,6 +38,7 @@ class Exit(IntEnum):
     IO = 7
     SOME_FAILED = 8  # batch: some files failed, the others were written
     NOTHING_DONE = 9  # batch: no program found, or every file failed
+    MEMORY = 10  # not enough memory to finish; nothing written
     INTERRUPTED = 130
 
 
@@ -52,7 +53,7 @@ OPTIONS = "Options"
 
 def exit_code(exc: NcoptError) -> Exit:
     """The exit code of an ncopt error."""
-    for kind, code in ((FileError, Exit.IO), (UsageError, Exit.USAGE), (MeshError, Exit.MESH),
+    for kind, code in ((OutOfMemory, Exit.MEMORY), (FileError, Exit.IO), (UsageError, Exit.USAGE), (MeshError, Exit.MESH),
                        (PlanningError, Exit.PLANNING), (VerificationError, Exit.VERIFICATION),
                        (NcParseError, Exit.PROGRAM)):
         if isinstance(exc, kind):

@@ -82,3 +82,14 @@ class VerificationError(NcoptError):
 
 class FileError(NcoptError):
     """A file (or stdin, stdout, a folder) cannot be read or written; names the path."""
+
+
+class OutOfMemory(NcoptError):
+    """The machine gave the run less memory than the program needs: nothing is written."""
+
+
+def out_of_memory(what: str | None = None) -> OutOfMemory:
+    """The error a run ends with when an allocation fails (``what``: the file, if known)."""
+    return OutOfMemory("not enough memory to finish (the operating system refused an "
+                       "allocation); nothing was written: close other programs, raise the "
+                       "memory limit, or split the program into smaller files", path=what)

@@ -28,7 +28,7 @@ from typing import Callable, Iterator
 
 import typer
 
-from ncopt.runtime.errors import FileError, NcoptError, UsageError
+from ncopt.runtime.errors import FileError, NcoptError, UsageError, out_of_memory
 
 
 _stderr_console = None
@@ -235,6 +235,8 @@ def command_faults(code_of: Callable[[NcoptError], int], interrupted: int) -> It
         flush_stdout()  # what print() left in the buffer fails here, not at interpreter exit
     except NcoptError as exc:
         _fail(exc, code_of)
+    except MemoryError:  # a program larger than the memory this machine gives the run
+        _fail(out_of_memory(), code_of)
     except KeyboardInterrupt:
         say("ncopt: interrupted")
         raise typer.Exit(interrupted) from None
