@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import os
 import sys
-from pathlib import Path
 
 DIFFERENT = 1  # the exit code of diff(1) for files that differ (ncopt.cli.core.DIFFERENT)
 
@@ -36,7 +35,7 @@ def _quick_diff(argv: list[str]) -> int | None:
     if sys.stdout is None or _maybe_terminal() or not all(os.path.isfile(n) for n in names):
         return None
     try:
-        a, b = (Path(n).read_bytes() for n in names)
+        a, b = (_read(n) for n in names)
     except OSError:
         return None  # the command line names the file and what to do
     if a == b:
@@ -61,3 +60,9 @@ def _quick_diff(argv: list[str]) -> int | None:
         print("ncopt: interrupted", file=sys.stderr)
         return 130
     return DIFFERENT
+
+
+def _read(name: str) -> bytes:
+    """The bytes of a file (plain open: pathlib costs more to import than the diff takes)."""
+    with open(name, "rb") as f:
+        return f.read()

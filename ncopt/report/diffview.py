@@ -15,13 +15,10 @@ import difflib
 import io
 import os
 import re
-import shutil
-import subprocess
 import sys
 from contextlib import contextmanager
-from dataclasses import dataclass
 from itertools import zip_longest
-from typing import TYPE_CHECKING, Iterator, TextIO
+from typing import TYPE_CHECKING, Iterator, NamedTuple, TextIO
 
 from ncopt.reading.stampline import STAMP_LINE
 
@@ -32,9 +29,9 @@ _TOKEN = re.compile(r"\s+|\([^)]*\)|;.*|[A-Za-z]\s*[-+]?[\d.]+|.")
 CONTEXT = 1
 
 
-@dataclass(frozen=True)
-class DiffTotals:
-    """What changed between two programs with the same lines."""
+class DiffTotals(NamedTuple):
+    """What changed between two programs with the same lines (a NamedTuple: dataclasses
+    imports inspect, more than a quick diff costs)."""
 
     lines: int
     changed: int
@@ -328,6 +325,8 @@ def pager_command() -> str | None:
         if var in os.environ:
             command = os.environ[var].strip()
             return None if command in ("", "cat") else command
+    import shutil  # here: a diff into a pipe never pages (startup time, see ncopt.cli.entry)
+
     return "less" if shutil.which("less") else None
 
 
@@ -338,6 +337,8 @@ def paged(out: "Console", enabled: bool = True) -> Iterator["Console"]:
     if command is None:
         yield out
         return
+    import subprocess  # here: a diff into a pipe never pages (startup time)
+
     env = {**os.environ, "LESS": os.environ.get("LESS", "FRX"), "LV": os.environ.get("LV", "-c")}
     try:
         proc = subprocess.Popen(command, shell=True, stdin=subprocess.PIPE, env=env)
