@@ -259,6 +259,7 @@ def test_the_limits_the_options_name_are_the_models():
 
 
 # ------------------------------------------------------ tracebacks made located ----
+@pytest.mark.slow
 def test_simulate_with_a_sample_spacing_that_would_exhaust_memory(tmp_path):
     """--sample 1e-9 grew to 24 GB before the kernel ended it: refused with the spacing
     that fits (a 12 x 12 dome's 146 moves at the cap of 100,000 samples each: 14.5

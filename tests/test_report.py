@@ -97,6 +97,7 @@ def test_a_program_line_cannot_inject_markup(make_bowl, bowl_index, tmp_path):
     assert "&lt;script&gt;alert(1)&lt;/script&gt;" in html and "&lt;b&gt;y&lt;/b&gt;" in html
 
 
+@pytest.mark.browser
 @pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (.ci/run installs it)")
 def test_headless_chromium_draws_every_plot_without_errors(page):
     path = page[0]
