@@ -376,6 +376,7 @@ def test_a_symlink_out_of_the_folder_does_not_stop_the_batch(tmp_path, monkeypat
 COPIES = 12
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("signame, to_group", [("SIGINT", True), ("SIGTERM", False)],
                          ids=["ctrl-c", "sigterm"])
 def test_an_interrupted_batch_leaves_no_partial_file(tmp_path, signame, to_group):

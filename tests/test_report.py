@@ -169,6 +169,7 @@ def test_without_plotly_the_report_says_what_to_install(make_bowl, tmp_path, mon
                              "in ncopt's source folder, python -m pip install \".[plot]\")\n")
 
 
+@pytest.mark.slow
 def test_batch_writes_an_index_linking_each_files_page(make_bowl, bowl_stl, tmp_path):
     src = tmp_path / "in"
     (src / "sub").mkdir(parents=True)

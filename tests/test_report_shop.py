@@ -320,6 +320,7 @@ def test_batch_pages_share_one_plotly_file(tmp_path):
         assert re.search(r"<pre id=\"ncopt-errors\"[^>]*></pre>", dom)
 
 
+@pytest.mark.slow
 def test_rewrite_and_batch_take_report_lite(tmp_path):
     """--report-lite on rewrite and batch too: pages of static images, no plotly.js."""
     src = tmp_path / "in"

@@ -366,6 +366,7 @@ def test_generated_word_lines_spans_and_values(dialect, lines, newline, final_ne
 LONG_NUMBER = st.from_regex(r"[+-]?(?:[0-9]{1,20}\.?[0-9]{0,10}|\.[0-9]{1,25})", fullmatch=True)
 
 
+@pytest.mark.slow
 @settings(max_examples=300)
 @given(st.lists(LONG_NUMBER, min_size=1, max_size=40))
 def test_fast_path_values_are_float_to_the_bit(numbers):
