@@ -84,8 +84,7 @@ def _cases(stage: str, marker: str) -> list[Path]:
 
 
 WRITING = _cases("writing", "args")
-SUMMARY_CASES = [pytest.param(stage, case, id=f"{stage}/{case.name}")
-                 for stage in STAGES for case in _cases(stage, "case.json")]
+READING, MOTION, PLANNING, SIMULATE = (_cases(stage, "case.json") for stage in STAGES)
 
 
 # ------------------------------------------------------------------ formatting ----
@@ -125,9 +124,8 @@ def dumps(obj, indent: str = "") -> str:
     return flat
 
 
-def _column_text(col) -> bytes:
+def _column_text(col: np.ndarray) -> bytes:
     """A table column as text for the digest: floats to SIG significant digits."""
-    col = np.asarray(col)
     if col.dtype.kind == "f":
         return "\n".join([f"%.{SIG}g" % x for x in col.tolist()]).encode()
     if col.dtype.kind in "iub":
@@ -143,12 +141,12 @@ def table(*columns) -> dict:
     keep = list(range(0, n, step))
     if n and keep[-1] != n - 1:
         keep.append(n - 1)
+    cols = [np.asarray(col) for col in columns]
     digest = hashlib.sha256()
-    for col in columns:
-        assert len(col) == n
+    for col in cols:
+        assert col.shape == (n,)
         digest.update(_column_text(col) + b"\0")
-    listed = [[i, *(rounded(np.asarray(col)[i].tolist()) for col in columns)] for i in keep]
-    listed = [[v for x in row for v in (x if isinstance(x, list) else [x])] for row in listed]
+    listed = [[i, *(rounded(col[i].item()) for col in cols)] for i in keep]
     return {"rows": n, "step": step, "sha256_16": digest.hexdigest()[:16], "listed": listed}
 
 
@@ -324,13 +322,36 @@ def _compare_or_update(path: Path, got: str, update: bool) -> None:
                     "if the change is meant):\n" + "\n".join(diff))
 
 
-@pytest.mark.parametrize("stage, case", SUMMARY_CASES)
-def test_golden_summary(stage, case, update_golden):
+def _check_summary(stage: str, case: Path, update: bool) -> None:
     spec = json.loads((case / "case.json").read_text())
     text, name = _source(spec)
     job = _job(spec.get("job", {}))
     got = dumps(SUMMARIES[stage](text, name, job, spec)) + "\n"
-    _compare_or_update(case / "expected.json", got, update_golden)
+    _compare_or_update(case / "expected.json", got, update)
+
+
+def _name(case: Path) -> str:
+    return case.name
+
+
+@pytest.mark.parametrize("case", READING, ids=_name)
+def test_golden_reading(case, update_golden):
+    _check_summary("reading", case, update_golden)
+
+
+@pytest.mark.parametrize("case", MOTION, ids=_name)
+def test_golden_motion(case, update_golden):
+    _check_summary("motion", case, update_golden)
+
+
+@pytest.mark.parametrize("case", PLANNING, ids=_name)
+def test_golden_planning(case, update_golden):
+    _check_summary("planning", case, update_golden)
+
+
+@pytest.mark.parametrize("case", SIMULATE, ids=_name)
+def test_golden_simulate(case, update_golden):
+    _check_summary("simulate", case, update_golden)
 
 
 def test_golden_cases_exist():
@@ -374,8 +395,8 @@ def _drop_stamp(base: str, longer: str) -> tuple[str, str]:
     return "".join(b[:i] + b[i + n:]), "".join(b[i:i + n])
 
 
-@pytest.mark.parametrize("case", WRITING, ids=lambda p: p.name)
-def test_golden(case, tmp_path, update_golden):
+@pytest.mark.parametrize("case", WRITING, ids=_name)
+def test_golden_writing(case, tmp_path, update_golden):
     src = next(case.glob("input.*"))
     expected_path = case / f"expected{src.suffix}"
     got = _cli_rewrite(src, case, tmp_path / f"out{src.suffix}")
