@@ -4,7 +4,9 @@ The corpus of real programs is read in place from ``../shared/corpus`` (relative
 project root) and never copied into the project.
 
 Tiers: ``python -m pytest`` runs the fast tier, every test without a tier marker (about
-MEASURE); ``python -m pytest --all-tiers`` runs every tier (about MEASURE, what CI runs).
+1800 tests: 2 min 50 s on two cores shared with other work, load average 3);
+``python -m pytest --all-tiers`` runs every tier, what CI runs (about 3900 tests: 9 min
+50 s on the same machine).
 The markers (pyproject.toml): ``corpus`` (tests over the whole shared corpus), ``judge``
 (LinuxCNC's rs274 or the simulator judging many programs), ``browser`` (headless
 Chromium), ``slow`` (anything else that takes long).  ``-m EXPR`` selects by marker
