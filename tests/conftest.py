@@ -1,7 +1,18 @@
-"""Shared fixtures and the hypothesis profile of the test suite.
+"""Shared fixtures, the hypothesis profile and the tiers of the test suite.
 
 The corpus of real programs is read in place from ``../shared/corpus`` (relative to the
 project root) and never copied into the project.
+
+Tiers: ``python -m pytest`` runs the fast tier, every test without a tier marker (about
+1800 tests: 2 min 50 s on two cores shared with other work, load average 3);
+``python -m pytest --all-tiers`` runs every tier, what CI runs (about 3900 tests: 9 min
+50 s on the same machine).
+The markers (pyproject.toml): ``corpus`` (tests over the whole shared corpus), ``judge``
+(LinuxCNC's rs274 or the simulator judging many programs), ``browser`` (headless
+Chromium), ``slow`` (anything else that takes long).  ``-m EXPR`` selects by marker
+instead (``-m judge`` runs the judge tier alone), and a test file named on the command
+line runs whole (``pytest tests/test_judge.py``).  ``--update-golden`` rewrites the
+expected files of tests/test_golden.py instead of comparing with them.
 """
 
 from __future__ import annotations
@@ -19,7 +30,7 @@ CORPUS = (ROOT / "../shared/corpus").resolve()
 SAMPLES = ROOT / "samples"
 
 # CI and local runs give the same examples (derandomize) and slow machines no flaky
-# deadline errors; example counts stay small so the whole suite runs in about a minute.
+# deadline errors; example counts stay small so that the fast tier stays fast.
 settings.register_profile(
     "ncopt",
     derandomize=True,
@@ -39,6 +50,46 @@ os.environ.setdefault("TERM", "dumb")
 os.environ.setdefault("COLUMNS", "100")
 # a default machine set in the developer's shell would change what the tests plan
 os.environ.pop("NCOPT_MACHINE", None)
+
+
+TIERS = ("corpus", "judge", "browser", "slow")  # markers of the tests the fast tier leaves
+
+
+def pytest_addoption(parser):
+    parser.addoption("--all-tiers", action="store_true", default=False,
+                     help="run every tier (corpus, judge, browser, slow), not only the fast one")
+    parser.addoption("--update-golden", action="store_true", default=False,
+                     help="rewrite the expected files of tests/test_golden.py instead of "
+                          "comparing with them")
+
+
+def pytest_collection_modifyitems(config, items):
+    """The fast tier: without --all-tiers or a -m expression, leave the tests that carry
+    a tier marker (they are reported as deselected), except in the files named on the
+    command line (``pytest tests/test_judge.py`` runs the judge)."""
+    if config.getoption("--all-tiers") or config.getoption("-m"):
+        return
+    named = {Path(a.split("::")[0]).resolve() for a in config.args}
+    keep, left = [], []
+    for item in items:
+        tiered = any(item.get_closest_marker(m) for m in TIERS)
+        (left if tiered and Path(item.path).resolve() not in named else keep).append(item)
+    if left:
+        config.hook.pytest_deselected(items=left)
+        items[:] = keep
+
+
+def pytest_report_header(config):
+    if not (config.getoption("--all-tiers") or config.getoption("-m")):
+        return (f"fast tier: tests marked {', '.join(TIERS)} are deselected; "
+                "--all-tiers runs them")
+    return None
+
+
+@pytest.fixture(scope="session")
+def update_golden(request) -> bool:
+    """--update-golden: the golden tests write what they get as the expected files."""
+    return request.config.getoption("--update-golden")
 
 
 def load_module(rel: str, name: str):

@@ -115,6 +115,7 @@ def corpus_run(tmp_path_factory):
                 entries=json.loads(report.read_text()) if report.exists() else None)
 
 
+@pytest.mark.corpus
 def test_corpus_batch_finishes_with_some_failed(corpus_run):
     """(How long it takes is a benchmark's question, not a test's: machines differ by 2x.)"""
     result = corpus_run["result"]
@@ -128,6 +129,7 @@ def test_corpus_batch_finishes_with_some_failed(corpus_run):
         f"{counts['failed']} failed, of {len(entries)} files")
 
 
+@pytest.mark.corpus
 def test_report_lists_every_input_once(corpus_run):
     entries, src, out = corpus_run["entries"], corpus_run["src"], corpus_run["out"]
     sources = [e["source"] for e in entries]
@@ -150,6 +152,7 @@ def test_report_lists_every_input_once(corpus_run):
             assert e["status"] == "failed", e
 
 
+@pytest.mark.corpus
 def test_failed_files_carry_located_messages(corpus_run):
     entries, src = corpus_run["entries"], corpus_run["src"]
     failed = [e for e in entries if e["status"] == "failed"]
@@ -177,6 +180,7 @@ def test_failed_files_carry_located_messages(corpus_run):
         assert m and m[2] is not None, e
 
 
+@pytest.mark.corpus
 def test_originals_are_byte_identical(corpus_run):
     src, top = corpus_run["src"], corpus_run["top"]
     before = {k: v for k, v in corpus_run["before"].items() if k.startswith("in/")}
@@ -186,6 +190,7 @@ def test_originals_are_byte_identical(corpus_run):
     assert top.joinpath("in").is_dir()
 
 
+@pytest.mark.corpus
 def test_outputs_mirror_the_inputs(corpus_run):
     entries, src, out = corpus_run["entries"], corpus_run["src"], corpus_run["out"]
     expected = set()
@@ -211,6 +216,7 @@ def test_outputs_mirror_the_inputs(corpus_run):
     assert set(snapshot(out)) == expected  # nothing else in OUT
 
 
+@pytest.mark.corpus
 def test_no_temporary_and_nothing_outside_out(corpus_run):
     top, out = corpus_run["top"], corpus_run["out"]
     assert not [p for p in top.rglob("*") if p.name.endswith(TMP_SUFFIX)]
@@ -370,6 +376,7 @@ def test_a_symlink_out_of_the_folder_does_not_stop_the_batch(tmp_path, monkeypat
 COPIES = 12
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("signame, to_group", [("SIGINT", True), ("SIGTERM", False)],
                          ids=["ctrl-c", "sigterm"])
 def test_an_interrupted_batch_leaves_no_partial_file(tmp_path, signame, to_group):

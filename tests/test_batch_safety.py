@@ -295,6 +295,7 @@ def _check(src: Path, seen: dict, backups: dict) -> None:
             assert rel in allowed or p.name.endswith(TMP_SUFFIX), rel
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="fork")
 @settings(max_examples=15)
 @given(actions=st.lists(action_st, min_size=1, max_size=5))
@@ -358,6 +359,7 @@ def _replaced(src: Path, before: dict, written: dict, seen: dict) -> None:
 COPIES = 8
 
 
+@pytest.mark.slow
 def test_a_killed_batch_parent_leaves_no_traceback_and_no_temporary(tmp_path):
     src, out = tmp_path / "in", tmp_path / "out"
     src.mkdir()

@@ -30,6 +30,9 @@ GOOD = [p for p in ALL if p.parent == GOOD_DIR]
 PROGRAMS = [p for p in ALL if p.parent != BAD_DIR]
 
 
+pytestmark = pytest.mark.corpus  # the corpus tier: every program of the shared corpus
+
+
 def _id(p: Path) -> str:
     return str(p.relative_to(CORPUS))
 

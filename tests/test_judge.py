@@ -26,6 +26,9 @@ if RS274 is None:  # CI installs linuxcnc-uspace; a missing judge must not pass 
     pytest.skip("rs274 not installed: apt-get install --no-install-recommends linuxcnc-uspace",
                 allow_module_level=True)
 
+pytestmark = pytest.mark.judge  # the judge tier: rs274 judges the rewrites of ten corpus programs
+
+
 SPEC = CuttingData(vc_m_min=60.0, fz_mm=0.03)  # for programs that run M3 with no S word
 ALL = ("all",)  # 2D engravings ncopt leaves by default: planned here to judge the edits
 # (program, cutter on the command line or None to read it from the program, cutting data,

@@ -39,6 +39,9 @@ if RS274 is None:
     pytest.skip("rs274 not installed: apt-get install --no-install-recommends linuxcnc-uspace",
                 allow_module_level=True)
 
+pytestmark = pytest.mark.judge  # the judge tier: rs274 judges many random programs
+
+
 # random programs are no finishing operations: every one planned, to judge the edits
 JOB = Job(machine=Machine(227, 15000), cutter=Cutter(6, 2), operations=("all",))
 MM_PER_INCH = 25.4

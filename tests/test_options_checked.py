@@ -259,6 +259,7 @@ def test_the_limits_the_options_name_are_the_models():
 
 
 # ------------------------------------------------------ tracebacks made located ----
+@pytest.mark.slow
 def test_simulate_with_a_sample_spacing_that_would_exhaust_memory(tmp_path):
     """--sample 1e-9 grew to 24 GB before the kernel ended it: refused with the spacing
     that fits (a 12 x 12 dome's 146 moves at the cap of 100,000 samples each: 14.5
@@ -296,6 +297,7 @@ def test_a_feed_so_low_its_fz_rounds_to_zero_is_a_located_planning_error(tmp_pat
     assert not (tmp_path / "o.mpf").exists()
 
 
+@pytest.mark.slow
 def test_an_expression_of_50000_terms_is_evaluated():
     """LinuxCNC's cam-nisley demo computes its feed so: ``#1122 = [#1121 * #1111 * #1112]``;
     50,000 terms made a tree deeper than Python's recursion limit (RecursionError)."""
@@ -377,6 +379,7 @@ def runs(draw):
     return command, options, outputs
 
 
+@pytest.mark.slow
 @settings(max_examples=100, deadline=None)
 @given(runs())
 def test_no_option_set_or_output_path_loses_an_input_or_ends_in_a_traceback(run):

@@ -129,6 +129,7 @@ def test_a_second_rewrite_is_byte_identical(plunge, cut, rapid):
     assert twice == once
 
 
+@pytest.mark.slow
 @given(stepover=st.floats(0.3, 1.5), plunge_f=st.sampled_from([150.0, 200.0, 333.33, 500.0]),
        cut_f=st.sampled_from([400.0, 800.0, 1000.0, 1500.0]), s=st.sampled_from([3000, 4000, 5000]),
        top=st.floats(3.0, 40.0))

@@ -97,6 +97,7 @@ def test_a_program_line_cannot_inject_markup(make_bowl, bowl_index, tmp_path):
     assert "&lt;script&gt;alert(1)&lt;/script&gt;" in page and "&lt;b&gt;y&lt;/b&gt;" in page
 
 
+@pytest.mark.browser
 @pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (.ci/run installs it)")
 def test_headless_chromium_draws_every_plot_without_errors(page):
     path = page[0]
@@ -168,6 +169,7 @@ def test_without_plotly_the_report_says_what_to_install(make_bowl, tmp_path, mon
                              "in ncopt's source folder, python -m pip install \".[plot]\")\n")
 
 
+@pytest.mark.slow
 def test_batch_writes_an_index_linking_each_files_page(make_bowl, bowl_stl, tmp_path):
     src = tmp_path / "in"
     (src / "sub").mkdir(parents=True)

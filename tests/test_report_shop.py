@@ -173,6 +173,7 @@ def test_a_single_report_carries_its_own_plotly(bowl_page):
     assert "<script src" not in html and "plotly.js v" in html
 
 
+@pytest.mark.browser
 @needs_chromium
 def test_the_stamp_line_wraps_instead_of_widening_the_page(bowl_page, tmp_path):
     """The stamp (137 characters in the changed blocks) ran off a 1280 px page."""
@@ -287,6 +288,7 @@ def test_a_lite_report_is_small_and_has_only_images(tmp_path):
     assert "Along the cut: T3" in html
 
 
+@pytest.mark.browser
 @needs_corpus
 def test_batch_pages_share_one_plotly_file(tmp_path):
     """Three real programs: each page used to embed its own 4.8 MB plotly.js."""
@@ -318,6 +320,7 @@ def test_batch_pages_share_one_plotly_file(tmp_path):
         assert re.search(r"<pre id=\"ncopt-errors\"[^>]*></pre>", dom)
 
 
+@pytest.mark.slow
 def test_rewrite_and_batch_take_report_lite(tmp_path):
     """--report-lite on rewrite and batch too: pages of static images, no plotly.js."""
     src = tmp_path / "in"

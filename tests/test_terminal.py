@@ -65,6 +65,7 @@ def folder(tmp_path: Path) -> Path:
     return tmp_path
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("term", ["xterm-256color", "dumb"])
 def test_batch_runs_on_a_terminal_with_progress(folder: Path, term: str) -> None:
     code, shown = on_terminal(["batch", "in", "-o", "out", *SPINDLE], folder, term)

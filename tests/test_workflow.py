@@ -227,6 +227,7 @@ def test_simulate_csv_series(tmp_path):
     assert np.nanmax(table[:, 6]) == pytest.approx(1393)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("along, toolpath", [("png", "svg"), ("svg", "png")])
 def test_simulate_plots(tmp_path, along, toolpath):
     plot, path_plot = tmp_path / f"along.{along}", tmp_path / f"toolpath.{toolpath}"

@@ -1,7 +1,8 @@
-"""Regenerate the golden cases of tests/test_golden.py.
+"""Regenerate the meshes and the input programs of the writing stage's golden cases
+(tests/golden/writing/, read by tests/test_golden.py).
 
-    python tests/golden/make_golden.py             # meshes and input programs
-    python tests/golden/make_golden.py --expected  # also run ncopt and write expected.*
+    python tests/golden/make_golden.py                          # meshes and inputs
+    python -m pytest tests/test_golden.py --update-golden       # then the expected files
 
 Everything is deterministic.  The parts are analytic, so the programs carry the exact
 drop-cutter tool positions and the meshes carry vertices exactly on the surfaces:
@@ -22,7 +23,6 @@ from __future__ import annotations
 
 import importlib.util
 import shlex
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -30,10 +30,8 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 MESHES = HERE / "meshes"
-CASES = HERE / "cases"
+CASES = HERE / "writing"
 
-# the stamp's date, fixed (2026-01-01) so that the expected outputs stay the same every day
-ENV = {"SOURCE_DATE_EPOCH": "1767225600"}
 DOME_R, DOME_CZ = 40.0, -28.0
 RIDGE_R, RIDGE_CZ = 30.0, -20.0
 
@@ -158,8 +156,18 @@ def dome_bull_sinumerik() -> tuple[str, list[str], str]:
     return text, args, "input.mpf"
 
 
+def dome_nomesh() -> tuple[str, list[str], str]:
+    """tests/programs.py's dome (8 x 8 points), planned without a mesh: the normals come
+    from the toolpath."""
+    spec = importlib.util.spec_from_file_location("programs", ROOT / "tests" / "programs.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    args = ["--diameter", "6", "--teeth", "2", "--accel", "227", "--max-rpm", "15000"]
+    return module.dome(8).decode("latin-1"), args, "input.nc"
+
+
 CASE_FUNCS = {"dome_fanuc": dome_fanuc, "ridge_inch_crlf": ridge_inch_crlf,
-              "dome_bull_sinumerik": dome_bull_sinumerik}
+              "dome_bull_sinumerik": dome_bull_sinumerik, "dome_nomesh": dome_nomesh}
 
 
 def write_inputs() -> None:
@@ -171,27 +179,6 @@ def write_inputs() -> None:
         (folder / "args").write_text(shlex.join(args) + "\n")
 
 
-def write_expected() -> None:
-    sys.path.insert(0, str(ROOT))
-    from typer.testing import CliRunner
-
-    from ncopt.cli.app import app
-
-    for folder in sorted(CASES.iterdir()):
-        src = next(folder.glob("input.*"))
-        args = shlex.split((folder / "args").read_text())
-        args = [str((folder / a).resolve()) if i and args[i - 1] == "--mesh" else a
-                for i, a in enumerate(args)]
-        out = folder / f"expected{src.suffix}"
-        result = CliRunner(env=ENV).invoke(app, ["rewrite", str(src), *args, "-o", str(out),
-                                                 "-q"])
-        if result.exit_code != 0:
-            raise SystemExit(f"{folder.name}: exit {result.exit_code}: {result.stderr}")
-        print(f"wrote {out.relative_to(ROOT)}")
-
-
 if __name__ == "__main__":
     write_meshes()
     write_inputs()
-    if "--expected" in sys.argv[1:]:
-        write_expected()

@@ -277,6 +277,7 @@ def dialect_lines(dialect: str):
     return from_lark(parser(dialect), start="line", alphabet=alphabet)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dialect", ONE_DIALECT)
 @settings(max_examples=100)
 @given(data=st.data())
@@ -315,6 +316,7 @@ def fingerprint(path: Path) -> str:
     return h.hexdigest()
 
 
+@pytest.mark.corpus
 @pytest.mark.skipif(not CORPUS_FILES, reason="no corpus")
 @pytest.mark.parametrize("path", CORPUS_FILES, ids=lambda p: str(p.relative_to(CORPUS)))
 def test_corpus_reads_as_before(path):
@@ -325,6 +327,7 @@ def test_corpus_reads_as_before(path):
     assert fingerprint(path) == expected[str(path.relative_to(CORPUS))]
 
 
+@pytest.mark.corpus
 @pytest.mark.skipif(not CORPUS_FILES, reason="no corpus")
 @pytest.mark.parametrize("path", [p for p in CORPUS_FILES if p.parts[-2] != "bad"
                                   and "linuxcnc" in p.parts], ids=lambda p: p.name)

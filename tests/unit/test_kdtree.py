@@ -100,6 +100,7 @@ def test_prefetch_starts_one_thread_per_process():
     assert done.stdout.split() == ["True", "True"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("slow, first", [("interpret", "ncopt-mesh"),
                                          ("MeshIndex", "MainThread")])
 def test_a_rewrite_with_a_mesh_imports_the_tree_where_a_thread_is_idle(slow, first):

@@ -262,15 +262,18 @@ def _corpus_text(path: Path) -> str:
     return path.read_bytes().decode("latin-1")
 
 
+@pytest.mark.corpus
 def test_corpus_is_there():
     assert len(CORPUS_FILES) >= 100, CORPUS
 
 
+@pytest.mark.corpus
 @pytest.mark.parametrize("path", CORPUS_FILES, ids=lambda p: str(p.relative_to(CORPUS)))
 def test_fast_path_equals_lark_on_corpus(path):
     both_paths(_corpus_text(path), str(path))
 
 
+@pytest.mark.corpus
 @pytest.mark.parametrize("dialect", GRAMMARS[1:])
 @pytest.mark.parametrize("path", SMALL_CORPUS_FILES, ids=lambda p: str(p.relative_to(CORPUS)))
 def test_fast_path_equals_lark_on_corpus_per_dialect(path, dialect):
@@ -297,6 +300,7 @@ def grammar_lines(dialect: str | None):
     return from_lark(parser(dialect), start="line", alphabet=LATIN1_LINE)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dialect", GRAMMARS)
 @settings(max_examples=150)
 @given(data=st.data(), newline=st.sampled_from(["\n", "\r\n"]))
@@ -334,6 +338,7 @@ def word_lines(draw):
     return "".join(parts), expected
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dialect", GRAMMARS)
 @settings(max_examples=100)
 @given(st.lists(word_lines(), min_size=1, max_size=5), st.sampled_from(["\n", "\r\n"]),
@@ -361,6 +366,7 @@ def test_generated_word_lines_spans_and_values(dialect, lines, newline, final_ne
 LONG_NUMBER = st.from_regex(r"[+-]?(?:[0-9]{1,20}\.?[0-9]{0,10}|\.[0-9]{1,25})", fullmatch=True)
 
 
+@pytest.mark.slow
 @settings(max_examples=300)
 @given(st.lists(LONG_NUMBER, min_size=1, max_size=40))
 def test_fast_path_values_are_float_to_the_bit(numbers):
@@ -375,6 +381,7 @@ NEAR_MISS = st.text(st.sampled_from("GXSFgx0123456789.+- \t#[]=()%;/O*$:\x00\x7f
                     max_size=24)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dialect", GRAMMARS)
 @settings(max_examples=300)
 @given(st.lists(NEAR_MISS, min_size=1, max_size=4))

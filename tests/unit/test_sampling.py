@@ -180,6 +180,7 @@ def densified(text: str, pieces: int) -> str:
     return "\n".join(out + ["M5", "M30"]) + "\n"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("which", ["bowl", "wave"])
 def test_dense_programs_within_half_a_percent_of_every_tenth_mm(sample_bowl, wave, which):
     """0.1 mm blocks (the same paths posted densely): every CL point is queried, so every
@@ -317,6 +318,7 @@ def test_queries_in_spatial_order_give_the_path_order_answers(wave):
 # ---------------------------------------------------------------- the levels after the first
 
 
+@pytest.mark.slow
 @given(zigzags(), st.sampled_from([0.3, 1.0, 3.0]))
 def test_later_levels_judging_only_around_new_samples_split_the_same(wave, drawn, coarse_mm):
     """Each level after the first judges the intervals around its new samples only:
