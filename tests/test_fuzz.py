@@ -153,7 +153,6 @@ def test_non_utf8_comments_and_line_endings_survive(newline, final):
         assert "\r" not in out
 
 
-@pytest.mark.slow
 def test_a_100_kb_comment_line():
     text = HEADER + "(" + "x" * 100_000 + ")\nG1 X1\nM30\n"
     prog = parse_text(text, PATH)

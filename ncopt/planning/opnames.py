@@ -34,7 +34,9 @@ _WORDS_ONLY = re.compile(r"^(?:[A-Z]\s*[-+]?\d+(?:\.\d*)?\s*)+$", re.I)  # "( M6
 # a sentence, not a name: it ends with a stop or a comma, holds "word, word" or "key: value",
 # or runs over six words (Fusion's notices: "(When using Fusion for Personal Use, the
 # feedrate of rapid)", "(Aviso: uso personal...)", "(Using high feed G1 F5000. instead of G0.)")
-_SENTENCE = re.compile(r"[.,;:!?]\s*$|\w,\s|\w:\s|(?:\S+\s+){6}\S|personal\s+use|uso\s+personal|"
+# (the six words are counted by str.split: the pattern (?:\S+\s+){6}\S, searched, is
+# quadratic in a long word: a 100 kB comment line took 75 s)
+_SENTENCE = re.compile(r"[.,;:!?]\s*$|\w,\s|\w:\s|personal\s+use|uso\s+personal|"
                        r"subscription|suscripci", re.I)
 
 
@@ -98,7 +100,7 @@ def _name_or_notice(line: str) -> tuple[str | None, bool]:
     fact = read_comment(name)
     tool = _NOT_AN_OPERATION.match(name) is not None or (fact is not None
                                                           and fact.diameter is not None)
-    if tool or _SENTENCE.search(name):  # "(1/4 BALL ENDMILL)", "(3mm Endmill001)": no name
+    if tool or len(name.split(None, 6)) > 6 or _SENTENCE.search(name):  # "(1/4 BALL ENDMILL)", "(3mm Endmill001)": no name
         return None, True
     return (None if len(name) > 48 or "=" in name else name), False
 
