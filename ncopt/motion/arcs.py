@@ -81,3 +81,104 @@ def _center_from_r(prog, i, modal, p0, p1, radius, cw, a, b):
     center[a] = p0[a] + du / 2 - sign * h * dv / chord
     center[b] = p0[b] + dv / 2 + sign * h * du / chord
     return center
+
+
+def _column(lines, letter: str, at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(values, present) of ``letter`` on the lines ``at`` (NaN, False where absent)."""
+    column = lines.letters.get(letter)
+    if column is None:
+        return np.full(at.shape[0], np.nan), np.zeros(at.shape[0], dtype=bool)
+    return column[0][at], column[1][at]
+
+
+def _each(fn, *args) -> np.ndarray:
+    """``fn`` (a math function) on each element: the same bits as :func:`arc_points`'s
+    scalar calls (math.hypot is not libm's hypot)."""
+    return np.array([fn(*xs) for xs in zip(*(a.tolist() for a in args))], dtype=np.float64)
+
+
+def arcs_points(prog, lines, modal, at: np.ndarray, p0: np.ndarray, p1: np.ndarray,
+                tol_mm: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`arc_points` for many arcs at once: the arcs on lines ``at`` (k,) from ``p0``
+    to ``p1`` ((k, 3) mm).  Returns (points per arc (k,), points (sum, 3), lengths (sum,)),
+    bit for bit what :func:`arc_points` gives arc by arc (tested); an arc it would refuse
+    is refused by it, with its message, the first such arc in program order."""
+    k = at.shape[0]
+    if k == 0:
+        return np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0)
+    axes = np.array([_PLANE_AXES.get(int(p), (0, 1, 2)) if p == p else (0, 1, 2)
+                     for p in modal.plane[at].tolist()], dtype=np.int64).reshape(k, 3)
+    a, b, c = axes[:, 0], axes[:, 1], axes[:, 2]
+    scale = np.where(modal.inch[at], MM_PER_INCH, 1.0)
+    ijk = [_column(lines, x, at) for x in "IJK"]
+    off = np.nan_to_num(np.column_stack([v * scale for v, _ in ijk]))
+    has_ijk = ijk[0][1] | ijk[1][1] | ijk[2][1]
+    r_value, has_r = _column(lines, "R", at)
+    cw = modal.motion[at] == 20
+    rows = np.arange(k)
+    center = np.where(modal.arc_absolute[at][:, None], off, p0 + off)
+    by_r = has_r & ~has_ijk
+    bad = ~(has_ijk | has_r)
+    if by_r.any():
+        bad |= _centres_from_r(center, by_r, p0, p1, r_value * scale, cw, a, b, rows)
+    u0, v0 = p0[rows, a] - center[rows, a], p0[rows, b] - center[rows, b]
+    u1, v1 = p1[rows, a] - center[rows, a], p1[rows, b] - center[rows, b]
+    r0, r1 = _each(math.hypot, u0, v0), _each(math.hypot, u1, v1)
+    t_abs = 2 * math.sqrt(2) * np.where(modal.inch[at], 0.001 * MM_PER_INCH, 0.01)
+    err = np.abs(r0 - r1)
+    bad |= np.minimum(r0, r1) < MIN_ARC_RADIUS_MM * (1.0 - 1e-9)
+    with np.errstate(divide="ignore", invalid="ignore"):  # 0/0: refused above already
+        bad |= (err > 100 * t_abs) | ((err > t_abs) & (err / np.maximum(r0, r1) > 0.001))
+    if bad.any():  # refused as arc_points refuses it (it raises)
+        j = int(np.flatnonzero(bad)[0])
+        arc_points(prog, lines, modal, int(at[j]), p0[j], p1[j], tol_mm)
+    t0, t1 = _each(math.atan2, v0, u0), _each(math.atan2, v1, u1)
+    sweep = np.where(cw, t0 - t1, t1 - t0) % (2 * math.pi)
+    sweep[sweep < 1e-12] = 2 * math.pi
+    turns, _ = _column(lines, "P", at)
+    extra = ~np.isnan(turns) & (turns > 1)
+    if extra.any():
+        sweep[extra] += 2 * math.pi * (np.trunc(turns[extra]) - 1)
+    r = np.maximum(r0, 1e-9)
+    step = np.array([2 * math.acos(max(1 - tol_mm / x, -1.0)) if tol_mm < x else math.pi / 2
+                     for x in r.tolist()])
+    n = np.minimum(np.maximum(np.ceil(sweep / np.maximum(step, 1e-6)).astype(np.int64), 1),
+                   100000)
+    owner = np.repeat(rows, n)
+    first = np.concatenate(([0], np.cumsum(n)[:-1]))
+    kk = (np.arange(owner.shape[0]) - first[owner] + 1).astype(np.float64)
+    direction = np.where(cw, -1.0, 1.0)
+    t = t0[owner] + direction[owner] * sweep[owner] * kk / n[owner]
+    pts = np.empty((owner.shape[0], 3))
+    ca, cb, cc = a[owner], b[owner], c[owner]
+    pr = np.arange(owner.shape[0])
+    pts[pr, ca] = center[owner, ca] + r[owner] * np.cos(t)
+    pts[pr, cb] = center[owner, cb] + r[owner] * np.sin(t)
+    pts[pr, cc] = p0[owner, cc] + (p1[owner, cc] - p0[owner, cc]) * kk / n[owner]
+    last = first + n - 1
+    pts[last] = p1
+    length = _each(math.hypot, r * sweep, p1[rows, c] - p0[rows, c]) / n
+    return n, pts, np.repeat(length, n)
+
+
+def _centres_from_r(center, by_r, p0, p1, radius, cw, a, b, rows) -> np.ndarray:
+    """Fill ``center`` of the R-format arcs (``by_r``) as :func:`_center_from_r` does;
+    returns the arcs it would refuse (no chord, R too small for the chord)."""
+    j = np.flatnonzero(by_r)
+    aj, bj = a[j], b[j]
+    du, dv = p1[j, aj] - p0[j, aj], p1[j, bj] - p0[j, bj]
+    chord = _each(math.hypot, du, dv)
+    rr = np.abs(radius[j])
+    refused = np.zeros(by_r.shape[0], dtype=bool)
+    refused[j] = (chord < 1e-12) | (chord / 2 > rr + 0.0001 * MM_PER_INCH)
+    ok = ~refused[j]
+    rr = np.maximum(rr, chord / 2)
+    h = np.sqrt(np.maximum(rr * rr - chord * chord / 4, 0.0))
+    sign = np.where(~cw[j], 1, -1) * np.where(radius[j] > 0, 1, -1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ca = p0[j, aj] + du / 2 - sign * h * dv / chord
+        cb = p0[j, bj] + dv / 2 + sign * h * du / chord
+    center[j] = p0[j]
+    center[j[ok], aj[ok]] = ca[ok]
+    center[j[ok], bj[ok]] = cb[ok]
+    return refused

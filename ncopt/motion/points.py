@@ -9,7 +9,7 @@ import functools
 import numpy as np
 
 from ncopt.model import MM_PER_INCH, LineKind, Toolpath
-from ncopt.motion.arcs import arc_points
+from ncopt.motion.arcs import arcs_points
 from ncopt.motion.checks import check_feed
 from ncopt.motion.feedmode import G93, G95, tip_feed_mm_min
 from ncopt.motion.modal import G_MODES_NOT_READ, G_NOT_A_TARGET, SCALED_WHY, row_norms
@@ -99,18 +99,16 @@ def _move_starts(end, end_known, move_lines, last_event) -> tuple[np.ndarray, np
 
 
 def _arc_pieces(prog, lines, modal, move_lines, arcs, prev_pt, end, both_known,
-                tol_mm: float) -> tuple[np.ndarray, dict]:
-    """Points per move ((moves,) int64: 1, or an arc's pieces) and {move: (points (k, 3),
-    lengths (k,))} of the arcs whose both ends are known (``arcs``: the moves that are)."""
+                tol_mm: float) -> tuple[np.ndarray, tuple]:
+    """Points per move ((moves,) int64: 1, or an arc's pieces) and the pieces of the arcs
+    whose both ends are known (``arcs``: the moves that are): (their moves (m,), points
+    (sum, 3), lengths (sum,)), all arcs at once (:func:`ncopt.motion.arcs.arcs_points`)."""
     counts = np.ones(move_lines.shape[0], dtype=np.int64)
-    pieces = {}
-    for j in arcs.tolist():
-        if not both_known[j]:
-            continue
-        pts, lengths = arc_points(prog, lines, modal, move_lines[j], prev_pt[j], end[j], tol_mm)
-        pieces[j] = (pts, lengths)
-        counts[j] = pts.shape[0]
-    return counts, pieces
+    cut = arcs[both_known[arcs]]
+    n, pts, lengths = arcs_points(prog, lines, modal, move_lines[cut], prev_pt[cut], end[cut],
+                                  tol_mm)
+    counts[cut] = n
+    return counts, (cut, n, pts, lengths)
 
 
 def _point_rows(end, seg_len, counts, pieces) -> tuple:
@@ -124,9 +122,13 @@ def _point_rows(end, seg_len, counts, pieces) -> tuple:
     xyz[last_rows] = end
     lengths = np.zeros(n_pts)
     lengths[last_rows] = seg_len
-    for j, (pts, piece_len) in pieces.items():  # only arcs have pieces (not a loop over 1M moves)
-        xyz[rows[j] + 1:rows[j + 1] + 1] = pts
-        lengths[rows[j] + 1:rows[j + 1] + 1] = piece_len
+    arc_moves, n, pts, piece_len = pieces
+    if arc_moves.size:  # each arc's pieces in its rows
+        first = np.concatenate(([0], np.cumsum(n)[:-1]))
+        within = np.arange(pts.shape[0]) - np.repeat(first, n)
+        at = np.repeat(rows[arc_moves] + 1, n) + within
+        xyz[at] = pts
+        lengths[at] = piece_len
     xyz[0] = end[0] if end.shape[0] else 0.0
     return xyz, lengths, rows, one_each
 
