@@ -221,7 +221,7 @@ class Toolpath:
     line_inch: np.ndarray | None = None
     spindle_on: np.ndarray | None = None
     lines: LineState | None = None
-    warnings: tuple = ()
+    warnings: tuple[str, ...] = ()
     tool_axis: np.ndarray | None = None
     kinematics: str | None = None
     inverse_time: np.ndarray | None = None
@@ -555,7 +555,7 @@ class Job:
     contact_tol_mm: float = 0.05
     verify: bool = True
     stamp: bool = True
-    operations: tuple | None = None  # --operations: names to plan (or "all"); None: by kind
+    operations: tuple[str, ...] | None = None  # --operations (or "all"); None: by kind
     stock_mm: float = 0.0  # --stock: allowance the program leaves on the mesh, mm
     diameter_bare: bool = False  # --diameter was a bare number (read as mm)
     shape_named: bool = False  # the user named the cutter's shape (not --diameter alone)

@@ -62,7 +62,7 @@ class FileReport:
     report: str = ""  # the file's HTML page (batch --report index.html)
     report_error: str = ""  # why it has none
     summary: dict | None = None  # the rewrite's summary (ncopt.api.Summary.to_dict)
-    operations: tuple = ()  # (name, planned, why) of every operation, whether planned or not
+    operations: tuple[tuple[str, bool, str], ...] = ()  # (name, planned, why) of each
 
     def to_dict(self) -> dict:
         return asdict(self)

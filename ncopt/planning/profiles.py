@@ -96,7 +96,7 @@ class Profiles:
     machines: dict = field(default_factory=dict)
     tools: dict = field(default_factory=dict)  # key (int T or str name) -> (Cutter, source)
     cutting: dict = field(default_factory=dict)  # name -> (CuttingData, source)
-    default_machine: tuple | None = None  # (name, source)
+    default_machine: tuple[str, str] | None = None  # (name, source)
     sources: tuple[str, ...] = ()  # the files read, in order
 
     def machine(self, name: str) -> MachineProfile:

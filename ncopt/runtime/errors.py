@@ -55,7 +55,7 @@ class NothingToPlan(PlanningError):
     ``operations``: the program's operations, each with why it is left (empty where the
     program was not read that far)."""
 
-    operations: tuple = ()
+    operations: tuple[object, ...] = ()  # the planning stage's operation records
 
 
 class UsageError(NcoptError):
