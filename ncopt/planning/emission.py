@@ -9,9 +9,13 @@ above the profile (vc stays under its target), never out of the fz band.
 The walk is a sequential hysteresis that runs once per block (1M blocks in a big
 program): it reads and writes memoryviews of the arrays (their items are Python floats
 and bools, as with tolist(), without building lists of 1M objects first), a steady block
-costs no call, and ``b if b > a else a`` stands for max(a, b) (exactly: the first of
+costs no call, a block's time (with ``--min-s-interval-ms``) is an expression in the loop
+rather than a call, and ``b if b > a else a`` stands for max(a, b) (exactly: the first of
 equals, NaN alike, the same type; ``b if b < a else a`` for min), at a third of the cost
-of the builtin call.
+of the builtin call.  A compiled walk (numba) was measured and not taken: this walk
+costs about 0.6 us of CPU a block (0.6 s over 1M blocks); importing numba and loading the
+compiled walk from its cache costs 0.3-0.5 s, compiling it (a cold cache, or every run
+where no cache folder is writable) 1.2-2 s, and numba with llvmlite installs 200 MB.
 """
 
 from __future__ import annotations
@@ -100,11 +104,13 @@ def emit_rpm(profile: Profile, blocks: Blocks, incs: tuple, opts: PlanOptions,
 def _columns(profile: Profile, blocks: Blocks, incs: tuple, timed: bool) -> tuple:
     """The per-block inputs of the walk, as memoryviews of Python floats and bools: the
     profile (snapped), fixed, spindle start, cutting, the two increments of
-    :func:`ncopt.planning.spindle.increments`, and (only when ``timed``) the length and
-    the time of a block at its own feed."""
+    :func:`ncopt.planning.spindle.increments`, and (only when ``timed``) 60 times the
+    length (mm s/min: over a feed in mm/min, the block's time in s) and the time of a block
+    at its own feed."""
     inc_s2, inc_s = (_items(a, np.float64) for a in incs)
-    timing = ((_items(blocks.length_mm, np.float64), _items(blocks.time_s, np.float64))
-              if timed else (None, None))
+    # 60.0 * L first, as the walk's 60.0 * L / F did: the same product, the same bits
+    timing = ((_items(60.0 * np.asarray(blocks.length_mm, dtype=np.float64), np.float64),
+               _items(blocks.time_s, np.float64)) if timed else (None, None))
     return (_items(snapped(profile.s_rpm), np.float64), _items(~blocks.planned, bool),
             _items(blocks.spindle_start, bool), _items(blocks.cutting & blocks.planned, bool),
             inc_s2, inc_s, *timing)
@@ -114,12 +120,12 @@ def _walk(columns: tuple, fixed_rpm: np.ndarray, rules: _Rules, out: tuple) -> i
     """Fill ``out`` (S commanded, lowest and highest real speed per block) block by block;
     returns the count of falls that came sooner than ``rules.interval_s`` after the
     previous S word.  ``fixed_rpm`` is read only in fixed blocks (no list of 1M floats)."""
-    s_plan, fixed, starts, cutting, inc_s2, inc_s, length, time_free = columns
+    s_plan, fixed, starts, cutting, inc_s2, inc_s, length60, time_free = columns
     cmd_out, low_out, high_out = (memoryview(a) for a in out)
     step, lo_int, top, interval_s = rules.step, rules.lo_int, rules.top, rules.interval_s
-    ratio, feed_per_rev_mm = rules.ratio, rules.feed_per_rev_mm
-    band = not math.isinf(ratio)
-    timed = interval_s > 0  # else the clock since the last S word never matters
+    ratio, per_rev_mm = rules.ratio, rules.feed_per_rev_mm  # fz z: a cut's F = fz z S
+    per_rev = per_rev_mm > 0
+    band, timed = not math.isinf(ratio), interval_s > 0  # untimed: the clock never matters
     floor, sqrt, inf = math.floor, math.sqrt, math.inf
     cur = real = None
     since_s, close = inf, 0
@@ -134,8 +140,9 @@ def _walk(columns: tuple, fixed_rpm: np.ndarray, rules: _Rules, out: tuple) -> i
             cur = real = float(min(max(floor(target), lo_int), top))
         elif real == cur and cur <= target < cur + step:  # holding steady: nothing to do
             cmd_out[b] = low_out[b] = high_out[b] = cur
-            if timed:
-                since_s += _block_s(cut_b, length[b], time_free[b], feed_per_rev_mm, cur)
+            if timed:  # a cut at F = fz z S (max(cur, 1.0) spelled out), else at its own F
+                since_s += (length60[b] / (per_rev_mm * (1.0 if 1.0 > cur else cur))
+                            if cut_b and per_rev else time_free[b])
             continue
         else:
             r = ratio if cut_b else inf
@@ -162,8 +169,7 @@ def _walk(columns: tuple, fixed_rpm: np.ndarray, rules: _Rules, out: tuple) -> i
                     cur = before  # a rise waits
                 elif cur < before:
                     close += 1
-        # the real speed at the block's end: toward the command, S^2 moves by at most inc2_b
-        # (cutting), S by inc_b
+        # the real speed at the block's end: toward cur, S^2 moves by <= inc2_b, S by <= inc_b
         start = cur if real is None else real
         if start == cur:
             real = cur
@@ -184,18 +190,12 @@ def _walk(columns: tuple, fixed_rpm: np.ndarray, rules: _Rules, out: tuple) -> i
             cmd_out[b], low_out[b], high_out[b] = cur, start, real
         else:
             cmd_out[b], low_out[b], high_out[b] = cur, real, start
-        if timed:  # the clock restarts at a new S word
-            since_s = (since_s if cur == before else 0.0) + _block_s(
-                cut_b, length[b], time_free[b], feed_per_rev_mm, start if start < real else real)
+        if timed:  # the clock restarts at a new S word; a cut at its lowest real speed
+            low = start if start < real else real
+            since_s = (since_s if cur == before else 0.0) + (
+                length60[b] / (per_rev_mm * (1.0 if 1.0 > low else low))
+                if cut_b and per_rev else time_free[b])
     return close
-
-
-def _block_s(cut_b: bool, length_mm: float, time_s: float, feed_per_rev_mm: float,
-             speed_rpm: float) -> float:
-    """A block's duration: a cut at F = fz z S (``feed_per_rev_mm`` = fz z, at its
-    lowest real speed ``speed_rpm``), any other block at its own feed (``time_s``)."""
-    return (60.0 * length_mm / (feed_per_rev_mm * max(speed_rpm, 1.0))
-            if cut_b and feed_per_rev_mm > 0 else time_s)
 
 
 def _rise(target: float, cur: float, real: float, r: float, banded: bool,
