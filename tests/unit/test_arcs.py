@@ -66,16 +66,16 @@ def arc_programs(draw):
                b: round(cb + radius * math.sin(phi + sweep), 4),
                c: round(pos[c] + draw(st.sampled_from([0.0, 0.0, 1.5, -2.25])), 4)}
         words = " ".join(f"{ax}{end[ax]}" for ax in "XYZ")
-        if draw(st.integers(0, 3)) == 0:
+        if draw(st.integers(0, 4)) == 2:  # (hypothesis leans to both ends: rare cases in the middle)
             long_arc = abs(sweep) > math.pi
             centre = f"R{'-' if long_arc else ''}{radius:.4f}"
         elif absolute:
             centre = f"{OFFSET[a]}{ca:.4f} {OFFSET[b]}{cb:.4f}"
         else:
             centre = f"{OFFSET[a]}{ca - pos[a]:.4f} {OFFSET[b]}{cb - pos[b]:.4f}"
-        if draw(st.integers(0, 15)) == 0:
+        if draw(st.integers(0, 16)) == 8:
             centre = f"{OFFSET[a]}{draw(NUM)}"  # a broken one: refused alike
-        turns = " P2" if draw(st.integers(0, 9)) == 0 and not centre.startswith("R") else ""
+        turns = " P2" if draw(st.integers(0, 10)) == 5 and not centre.startswith("R") else ""
         lines.append(f"{g} {words} {centre}{turns}")
         pos = end
     return "\n".join(lines) + "\n"
