@@ -29,6 +29,7 @@ from ncopt.contacts.pathnormals import NO_CROSS, ONE_SIDED, ONE_SIDED_TILT_DEG, 
 from ncopt.contacts.pathnormals import across as across_axis
 from ncopt.contacts.pathnormals import contacts_from_path, path_normals, tilt_from_axis
 from ncopt.contacts.remaining import r_eff_material_mm
+from ncopt.contacts.touchedges import with_touch_edges
 from ncopt.contacts.sampling import Probe, Refinement, adaptive_samples
 from ncopt.contacts.cutters import center_offset_mm, r_eff_mm
 
@@ -301,7 +302,8 @@ def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index:
         axis = sample_axes(tp, sample_mm)
         found = mesh_contacts(xyz + centre_offsets(tp, cutter, axis), mesh_index, cutter, tol_mm,
                               stock_mm=stock_mm, axis=axis)
-        sampled = Sampled(found.contacts, point, gap_mm=found.gap_mm, axis=axis)
+        sampled = Sampled(with_touch_edges(found.contacts, found.gap_mm, tol_mm), point,
+                          gap_mm=found.gap_mm, axis=axis)
     elif mesh_index is not None:
         offset = centre_offsets(tp, cutter, None)
         ref = Refinement(coarse_mm=sample_mm, r_floor_mm=r_floor_mm, contact_tol_mm=tol_mm)
