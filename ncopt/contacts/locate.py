@@ -391,7 +391,9 @@ def _inside_turns(tp: Toolpath, cutter: Cutter, normal: np.ndarray, tilt: np.nda
                   cutting: np.ndarray) -> np.ndarray:
     """(n,) the largest R_eff (mm) inside each cutting move between two cutting points
     that turns the tool axis (0 elsewhere), sampled every ``INSIDE_TURN_DEG`` of its turn:
-    the normal and its tilt blended from the ends, the axis as the control turns it."""
+    the axis as the control turns it, the tilt blended from the ends, the normal blended
+    from the ends and turned with the ball centre where it leaves their chord (at the
+    curvature the ends' normals show along the move)."""
     peak = np.zeros(tp.n)
     k = np.flatnonzero(cutting[1:] & cutting[:-1]) + 1
     e0, e1 = tp.tool_axis[k - 1], tp.tool_axis[k]
@@ -409,6 +411,18 @@ def _inside_turns(tp: Toolpath, cutter: Cutter, normal: np.ndarray, tilt: np.nda
     axis = axes_between(tp, end - 1, end, frac)
     f = frac[:, None]
     n = normal[end - 1] * (1.0 - f) + normal[end] * f
+    n /= np.maximum(np.linalg.norm(n, axis=1), 1e-12)[:, None]
+    # the ball centre leaves the chord of the end centres as the axis turns (by 0.2 mm where
+    # C swings 160 deg at A 3 deg): the normal follows it by the curvature along the move
+    off = center_offset_mm(cutter)
+    p0, p1 = tp.xyz_mm[end - 1], tp.xyz_mm[end]
+    c0, c1 = p0 + off * tp.tool_axis[end - 1], p1 + off * tp.tool_axis[end]
+    away = p0 * (1.0 - f) + p1 * f + off * axis - (c0 * (1.0 - f) + c1 * f)
+    away -= np.einsum("ij,ij->i", away, n)[:, None] * n
+    chord = c1 - c0
+    bend = np.einsum("ij,ij->i", normal[end] - normal[end - 1], chord) \
+        / np.maximum(np.einsum("ij,ij->i", chord, chord), 1e-12)
+    n += bend[:, None] * away
     n /= np.maximum(np.linalg.norm(n, axis=1), 1e-12)[:, None]
     t = tilt[end - 1] * (1.0 - frac) + tilt[end] * frac
     np.maximum.at(peak, end, r_eff_mm(cutter, tilt_from_axis(n, t, axis), axis))
