@@ -2,10 +2,13 @@
 
 A dome (convex sphere) and a bowl (concave sphere), finished with a D10 ball in
 zig-zag passes along X, the tool tilted from the surface normal by a lead angle
-(toward the feed direction) and a tilt angle (sideways), each varying 5-25 deg
-along the path.  The ball touches the analytic surface exactly at every CL
-point (a sphere's contact does not depend on its axis), so the program and the
-mesh agree to the mesh's chord error (0.5 mm grid on a 60 mm sphere: 0.0005 mm).
+(toward the feed direction) and a tilt angle (sideways), each varying 5-25 deg:
+slowly along the whole path (``variation="sweep"``, 0.5 mm blocks), or as functions of
+the place, several sweeps within every pass (``"flowline"``, 1 mm blocks, the axis
+turning up to 5.5 deg a block; :data:`FLOWLINE`).  The ball touches the analytic
+surface exactly at every CL point (a sphere's contact does not depend on its axis), so
+the program and the mesh agree to the mesh's chord error (0.5 mm grid on a 60 mm
+sphere: 0.0005 mm).
 
 Three styles of the same toolpath:
 
@@ -20,9 +23,9 @@ Closed forms: at a contact with unit normal ``n`` the axis is ``e = cos(l)
 cos(t) n + sin(l) u + cos(l) sin(t) v`` (``u`` the feed direction in the
 tangent plane, ``v = n x u``), so ``R_eff = R sqrt(1 - cos^2 l cos^2 t)``.
 
-``python bench/make_5axis.py [OUT_DIR] [--small]`` writes ``dome_*.nc``,
-``bowl_*.nc`` in every style and ``dome.stl``, ``bowl.stl`` (default
-``/tmp/ncopt_5axis``).
+``python bench/make_5axis.py [OUT_DIR] [--small] [--flowline]`` writes ``dome_*.nc``,
+``bowl_*.nc`` in every style (with ``--flowline`` also ``dome_flowline_*.nc``,
+``bowl_flowline_*.nc``) and ``dome.stl``, ``bowl.stl`` (default ``/tmp/ncopt_5axis``).
 """
 
 from __future__ import annotations
@@ -43,7 +46,8 @@ STYLES = ("traori", "g43.5", "xyzac-trt")
 class Case:
     """One toolpath: CL points (tool tips), tool axes, contacts and pass ids, (m, ...) arrays.
 
-    ``r_eff_mm`` is the exact effective radius at each CL point.
+    ``r_eff_mm`` is the exact effective radius at each CL point; ``variation`` how lead
+    and tilt vary (:func:`make_case`).
     """
 
     kind: str
@@ -53,6 +57,7 @@ class Case:
     normal: np.ndarray
     pass_id: np.ndarray
     r_eff_mm: np.ndarray
+    variation: str = "sweep"
 
 
 def surface(kind: str, x: np.ndarray, y: np.ndarray):
@@ -75,9 +80,30 @@ def angles_deg(s_mm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return 15.0 + 10.0 * np.sin(s_mm / 23.0), 15.0 + 10.0 * np.cos(s_mm / 37.0)
 
 
+# The flowline case: lead and tilt functions of the place on the part, each sweeping 5-25
+# deg within every pass, lead over LEAD_PERIOD_MM and tilt over TILT_PERIOD_MM along X
+# (up to 3.9 and 2.4 deg/mm; the passes shift their phases).  LinuxCNC's 5-axis demos turn
+# the axis 0.3-0.6 deg/mm at the median and 1.8-6 deg/mm at the 90th percentile, their
+# blocks 0.4-1.1 mm at the median: FLOWLINE's 1 mm blocks turn it 3 deg at the median,
+# 5.5 at most (the sweep case's 0.5 mm blocks: 0.5 and 0.9).
+LEAD_PERIOD_MM, TILT_PERIOD_MM = 16.0, 26.0
+FLOWLINE = dict(variation="flowline", step_mm=1.0)
+
+
+def flowline_angles_deg(x_mm: np.ndarray, y_mm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lead and tilt (deg) at the contact (x, y): each sweeps 5-25 deg along every pass."""
+    lead = 15.0 + 10.0 * np.sin(2.0 * np.pi * x_mm / LEAD_PERIOD_MM + y_mm / 7.0)
+    tilt = 15.0 + 10.0 * np.sin(2.0 * np.pi * x_mm / TILT_PERIOD_MM + 1.3 + y_mm / 5.0)
+    return lead, tilt
+
+
 def make_case(kind: str, half_mm: float = 30.0, step_mm: float = 0.5,
-              stepover_mm: float = 0.8) -> Case:
-    """Zig-zag passes along X over [-half, half]^2, the ball on the surface."""
+              stepover_mm: float = 0.8, variation: str = "sweep") -> Case:
+    """Zig-zag passes along X over [-half, half]^2, the ball on the surface.
+
+    ``variation``: ``"sweep"``, lead and tilt along the whole path's length
+    (:func:`angles_deg`, a slow sweep: at most 0.43 deg/mm); ``"flowline"``, functions
+    of the place (:func:`flowline_angles_deg`, several sweeps per pass)."""
     xs = np.arange(-half_mm, half_mm + 1e-9, step_mm)
     ys = np.arange(-half_mm, half_mm + 1e-9, stepover_mm)
     pts, ids, feed = [], [], []
@@ -93,12 +119,17 @@ def make_case(kind: str, half_mm: float = 30.0, step_mm: float = 0.5,
     u /= np.linalg.norm(u, axis=1)[:, None]
     v = np.cross(n, u)
     s = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(contact, axis=0), axis=1))))
-    lead, tilt = (np.radians(a) for a in angles_deg(s))
+    if variation == "sweep":
+        lead, tilt = (np.radians(a) for a in angles_deg(s))
+    elif variation == "flowline":
+        lead, tilt = (np.radians(a) for a in flowline_angles_deg(xy[:, 0], xy[:, 1]))
+    else:
+        raise ValueError(f"variation must be sweep or flowline, not {variation!r}")
     e = (np.cos(lead) * np.cos(tilt))[:, None] * n + np.sin(lead)[:, None] * u \
         + (np.cos(lead) * np.sin(tilt))[:, None] * v
     tip = contact + BALL_MM * n - BALL_MM * e
     r_eff = BALL_MM * np.sqrt(1.0 - (np.cos(lead) * np.cos(tilt)) ** 2)
-    return Case(kind, tip, e, contact, n, pass_id, r_eff)
+    return Case(kind, tip, e, contact, n, pass_id, r_eff, variation)
 
 
 def rotary_angles(axis: np.ndarray) -> np.ndarray:
@@ -128,7 +159,14 @@ class Moves:
 
 
 def moves(case: Case) -> Moves:
-    """Every pass with a ramp onto its start and off its end, rapids between."""
+    """Every pass with a ramp onto its start and off its end, rapids between.
+
+    A ramp holds the tool axis of the pass's end and runs LEAD_MM along the pass's
+    direction there, rising 0.3 mm along the normal: the direction of the tips' first or
+    last chord in the sweep case; in the flowline case that of the ball centres' (the
+    surface's), as CAM leads in and out: there the axis turns up to 5.5 deg a block and
+    the tips' chord leaves the ball centres' by 8 deg at the median, 19 at most, so a
+    ramp along it would dive into the part or leave it steeply."""
     ang = rotary_angles(case.axis)
     tips, axes, angs, rapid, ramp = [], [], [], [], []
 
@@ -139,8 +177,9 @@ def moves(case: Case) -> Moves:
     bounds = np.flatnonzero(np.diff(case.pass_id, prepend=-1, append=-1) != 0)
     for a, b in zip(bounds[:-1], bounds[1:] - 1):  # pass from point a to point b
         t, n = case.tip_mm, case.normal
-        back = t[a] - LEAD_MM * _unit(t[a + 1] - t[a]) + 0.3 * n[a]
-        ahead = t[b] + LEAD_MM * _unit(t[b] - t[b - 1]) + 0.3 * n[b]
+        c = t + BALL_MM * case.axis if case.variation == "flowline" else t
+        back = t[a] - LEAD_MM * _unit(c[a + 1] - c[a]) + 0.3 * n[a]
+        ahead = t[b] + LEAD_MM * _unit(c[b] - c[b - 1]) + 0.3 * n[b]
         add(back + [0, 0, CLEAR_MM], a, is_rapid=True)
         add(back, a, is_rapid=True)
         for k in range(a, b + 1):
@@ -225,19 +264,38 @@ def write_stl(path, V, F) -> None:
     m.save(str(path), update_normals=False)
 
 
-def write_cases(out_dir: str, small: bool = False) -> list[str]:
+def case_args(variation: str = "sweep", small: bool = False,
+              step_mm: float | None = None) -> dict:
+    """make_case's arguments for a variation (the flowline case in its 1 mm blocks) at the
+    full or the small (test) size; ``step_mm``: another block length."""
+    args = dict(FLOWLINE) if variation == "flowline" else dict(variation=variation)
+    if small:
+        args.update(half_mm=8.0, step_mm=1.0, stepover_mm=1.5)
+    if step_mm is not None:
+        args["step_mm"] = step_mm
+    return args
+
+
+def case_name(kind: str, variation: str = "sweep") -> str:
+    """The file names' stem: ``dome``, or ``dome_flowline`` for the flowline case."""
+    return kind if variation == "sweep" else f"{kind}_{variation}"
+
+
+def write_cases(out_dir: str, small: bool = False, variation: str = "sweep",
+                step_mm: float | None = None) -> list[str]:
     """Every kind in every style (and xyzac-trt in G93), and the meshes; returns paths."""
     os.makedirs(out_dir, exist_ok=True)
     size = dict(half_mm=8.0, step_mm=1.0, stepover_mm=1.5) if small else {}
     written = []
     for kind in ("dome", "bowl"):
-        case = make_case(kind, **size)
+        case = make_case(kind, **case_args(variation, small, step_mm))
+        stem = case_name(kind, variation)
         for style in STYLES:
-            name = os.path.join(out_dir, f"{kind}_{style}.nc")
+            name = os.path.join(out_dir, f"{stem}_{style}.nc")
             with open(name, "w", newline="\n") as fh:
                 fh.write(program(case, style))
             written.append(name)
-        name = os.path.join(out_dir, f"{kind}_xyzac-trt_g93.nc")
+        name = os.path.join(out_dir, f"{stem}_xyzac-trt_g93.nc")
         with open(name, "w", newline="\n") as fh:
             fh.write(program(case, "xyzac-trt", feed="g93"))
         written.append(name)
@@ -251,8 +309,9 @@ def write_cases(out_dir: str, small: bool = False) -> list[str]:
 if __name__ == "__main__":
     args = [a for a in sys.argv[1:] if not a.startswith("--")]
     out = args[0] if args else "/tmp/ncopt_5axis"
-    for path in write_cases(out, small="--small" in sys.argv):
-        print(path, os.path.getsize(path), "bytes")
+    for var in ("sweep", "flowline") if "--flowline" in sys.argv else ("sweep",):
+        for path in write_cases(out, small="--small" in sys.argv, variation=var):
+            print(path, os.path.getsize(path), "bytes")
     print(f"lead and tilt 5-25 deg, D{2 * BALL_MM:g} ball, sphere radius {SPHERE_MM:g} mm; "
           f"chord error of the 0.5 mm mesh {0.5 ** 2 / (8 * SPHERE_MM):.4f} mm", file=sys.stderr)
 

@@ -82,9 +82,14 @@ def test_a_plane_at_fixed_lead_and_tilt_r_eff_is_exact():
     text, exact = plane_program(lambda x: 15.0, 10.0)
     expected = exact[0]
     assert np.allclose(exact, expected)
-    with_mesh = contacts(text, plane_index())[1].contacts
-    assert with_mesh.cutting.sum() > 200
-    assert np.allclose(with_mesh.r_eff_mm[with_mesh.cutting], expected, rtol=1e-9)
+    sampled = contacts(text, plane_index())[1]
+    with_mesh = sampled.contacts
+    # where the ball touches at the sample itself (the stepovers, which swing the axis
+    # from one lead to the other, lift it off: their samples past the edge of the contact
+    # stand for the stretch that still touches, at the R_eff there)
+    touching = with_mesh.cutting & (sampled.gap_mm <= 0.05)
+    assert touching.sum() > 200
+    assert np.allclose(with_mesh.r_eff_mm[touching], expected, rtol=1e-9)
     free = contacts(text, None)[1]
     sure = free.contacts.cutting & (free.estimate.confidence == CONFIDENT)
     assert sure.sum() > 100

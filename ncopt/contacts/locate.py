@@ -27,8 +27,10 @@ from ncopt.runtime.memory import release_freed_memory
 from ncopt.model import Method, Contacts, Cutter, Toolpath
 from ncopt.contacts.pathnormals import NO_CROSS, ONE_SIDED, ONE_SIDED_TILT_DEG, PathNormals
 from ncopt.contacts.pathnormals import across as across_axis
-from ncopt.contacts.pathnormals import contacts_from_path, path_normals, tilt_from_axis
+from ncopt.contacts.pathnormals import contacts_from_path, tilt_from_axis
 from ncopt.contacts.remaining import r_eff_material_mm
+from ncopt.contacts.runends import end_normals
+from ncopt.contacts.touchedges import with_touch_edges
 from ncopt.contacts.sampling import Probe, Refinement, adaptive_samples
 from ncopt.contacts.cutters import center_offset_mm, r_eff_mm
 
@@ -38,12 +40,14 @@ from ncopt.contacts.cutters import center_offset_mm, r_eff_mm
 # toolpaths are sampled at least this finely with a mesh (the D10 dome of
 # bench/make_5axis.py: 1 mm left vc +1.1 % and a lead-out at fz -57 %; 0.25 mm: +0.4 %).
 AXIS_SAMPLE_MM = 0.25
-# Without a mesh, where a run of 5-axis cuts begins or ends the tool enters or leaves
-# the part along a ramp; within the contact tolerance up the ramp the contact has
-# turned (2 mm ramps rising 0.3 mm on the dome and bowl of bench/make_5axis.py: ~0.35
-# deg, vc +1.8 %), which the path alone cannot show: those points are planned this
-# much steeper (0.5: vc +0.4/+0.6 %, 1.9/1.8 % above the optimum; 1.0: +0.2 %, 2.3/2.6 %).
-RUN_END_TILT_DEG = 0.5
+# Without a mesh, R_eff inside a move comes from its ends' normals blended and the axis the
+# control turns between them; where the axis turns, R_eff can peak inside the move (rotary
+# angles turned linearly bulge off the great circle, most where A is near 0 and C swings:
+# +0.5 % mid-block on the xyzac-trt flowline bowl of bench/make_5axis.py).  Such moves are
+# sampled every this many degrees of turn (at most MAX_INSIDE pieces), and their ends
+# planned with the largest R_eff found.
+INSIDE_TURN_DEG = 1.0
+MAX_INSIDE = 32
 # Without a mesh, a plunge or retract is proved to be in the air where its lower end stays
 # above the highest point the tool cuts, less this (a plunge that ends where the cut
 # begins, at its top, touches the part only there).
@@ -301,7 +305,8 @@ def contacts_for(tp: Toolpath, cutter: Cutter, selected: np.ndarray, mesh_index:
         axis = sample_axes(tp, sample_mm)
         found = mesh_contacts(xyz + centre_offsets(tp, cutter, axis), mesh_index, cutter, tol_mm,
                               stock_mm=stock_mm, axis=axis)
-        sampled = Sampled(found.contacts, point, gap_mm=found.gap_mm, axis=axis)
+        sampled = Sampled(with_touch_edges(found.contacts, found.gap_mm, tol_mm), point,
+                          gap_mm=found.gap_mm, axis=axis)
     elif mesh_index is not None:
         offset = centre_offsets(tp, cutter, None)
         ref = Refinement(coarse_mm=sample_mm, r_floor_mm=r_floor_mm, contact_tol_mm=tol_mm)
@@ -362,37 +367,66 @@ def _air_below_the_top(tp: Toolpath, cutter: Cutter, selected: np.ndarray, sampl
 
 def _path_contacts_5axis(tp: Toolpath, cutter: Cutter, cutting: np.ndarray):
     """Mesh-free contacts with a tilted axis: normals from the ball centres, along the
-    centres' own path (the tip's is longer or shorter where the axis turns)."""
+    centres' own path (the tip's is longer or shorter where the axis turns); one-sided
+    normals planned steeper (as contacts_from_path), the ends of runs of cuts as
+    :func:`ncopt.contacts.runends.end_normals` says, and the largest R_eff inside the
+    moves that turn the axis (:func:`_inside_turns`) planned at their ends where it
+    exceeds both."""
     centres = tp.xyz_mm + centre_offsets(tp, cutter, tp.tool_axis)
-    est, run_end = _end_normals(centres, cutting, tp.tool_axis)
-    return _recomputed(est, cutter, centres, tp.tool_axis, cutting, run_end), est
-
-
-def _end_normals(centres: np.ndarray, cutting: np.ndarray, axis: np.ndarray):
-    """Path normals, and (m,) bool: the first and last point of each run of cuts.  The
-    last point is where the tool leaves the part (a lead-out ends above it): no
-    neighbour of the others, it takes the normal before it."""
-    step = np.linalg.norm(np.diff(centres, axis=0), axis=1)
-    path = np.concatenate(([0.0], np.cumsum(step)))
-    before = np.concatenate(([False], cutting[:-1]))
-    last = cutting & ~np.concatenate((cutting[1:], [False]))
-    est = path_normals(centres, path, cutting & ~(last & before), axis=axis)
-    inner = np.flatnonzero(last & before)
-    est.normal[inner] = est.normal[inner - 1]
-    est.confidence[inner] = est.confidence[inner - 1]  # and as far as that one is trusted
-    return est, last | (cutting & ~before)
-
-
-def _recomputed(est: PathNormals, cutter: Cutter, centres, axis, cutting,
-                run_end=None) -> Contacts:
-    """Contacts from path normals (one-sided ones planned steeper, as contacts_from_path;
-    the ends of runs of cuts by RUN_END_TILT_DEG)."""
+    est, end_tilt = end_normals(centres, cutting, tp.tool_axis)
     tilt = np.where(est.confidence == ONE_SIDED, np.radians(ONE_SIDED_TILT_DEG), 0.0)
-    if run_end is not None:
-        tilt = np.maximum(tilt, np.where(run_end, np.radians(RUN_END_TILT_DEG), 0.0))
-    r_eff = r_eff_mm(cutter, tilt_from_axis(est.normal, tilt, axis), axis)
-    return Contacts(cc_mm=centres - cutter.corner_radius_mm * est.normal, normal=est.normal,
-                    r_eff_mm=r_eff, cutting=cutting.copy())
+    tilt = np.maximum(tilt, end_tilt)
+    r_eff = r_eff_mm(cutter, tilt_from_axis(est.normal, tilt, tp.tool_axis), tp.tool_axis)
+    # the start of a move plans it too (the end of the one before): only a peak above both
+    # ends is carried, to the end
+    peak = _inside_turns(tp, cutter, est.normal, tilt, cutting)
+    before = np.concatenate(([0.0], r_eff[:-1]))
+    r_eff = np.where(peak > np.maximum(r_eff, before), peak, r_eff)
+    contacts = Contacts(cc_mm=centres - cutter.corner_radius_mm * est.normal,
+                        normal=est.normal, r_eff_mm=r_eff, cutting=cutting.copy())
+    return contacts, est
+
+
+def _inside_turns(tp: Toolpath, cutter: Cutter, normal: np.ndarray, tilt: np.ndarray,
+                  cutting: np.ndarray) -> np.ndarray:
+    """(n,) the largest R_eff (mm) inside each cutting move between two cutting points
+    that turns the tool axis (0 elsewhere), sampled every ``INSIDE_TURN_DEG`` of its turn:
+    the axis as the control turns it, the tilt blended from the ends, the normal blended
+    from the ends and turned with the ball centre where it leaves their chord (at the
+    curvature the ends' normals show along the move)."""
+    peak = np.zeros(tp.n)
+    k = np.flatnonzero(cutting[1:] & cutting[:-1]) + 1
+    e0, e1 = tp.tool_axis[k - 1], tp.tool_axis[k]
+    turn = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", e0, e1), -1.0, 1.0)))
+    if tp.tool_angles_deg is not None:
+        swing = np.abs(tp.tool_angles_deg[k] - tp.tool_angles_deg[k - 1]).sum(axis=1)
+        turn = np.maximum(turn, np.nan_to_num(swing))
+    pieces = np.clip(np.ceil(turn / INSIDE_TURN_DEG), 1, MAX_INSIDE).astype(np.int64)
+    k, pieces = k[pieces > 1], pieces[pieces > 1]
+    if k.size == 0:
+        return peak
+    end = np.repeat(k, pieces - 1)
+    first = np.repeat(np.cumsum(pieces - 1) - (pieces - 1), pieces - 1)
+    frac = (np.arange(end.size) - first + 1) / np.repeat(pieces, pieces - 1)
+    axis = axes_between(tp, end - 1, end, frac)
+    f = frac[:, None]
+    n = normal[end - 1] * (1.0 - f) + normal[end] * f
+    n /= np.maximum(np.linalg.norm(n, axis=1), 1e-12)[:, None]
+    # the ball centre leaves the chord of the end centres as the axis turns (by 0.2 mm where
+    # C swings 160 deg at A 3 deg): the normal follows it by the curvature along the move
+    off = center_offset_mm(cutter)
+    p0, p1 = tp.xyz_mm[end - 1], tp.xyz_mm[end]
+    c0, c1 = p0 + off * tp.tool_axis[end - 1], p1 + off * tp.tool_axis[end]
+    away = p0 * (1.0 - f) + p1 * f + off * axis - (c0 * (1.0 - f) + c1 * f)
+    away -= np.einsum("ij,ij->i", away, n)[:, None] * n
+    chord = c1 - c0
+    bend = np.einsum("ij,ij->i", normal[end] - normal[end - 1], chord) \
+        / np.maximum(np.einsum("ij,ij->i", chord, chord), 1e-12)
+    n += bend[:, None] * away
+    n /= np.maximum(np.linalg.norm(n, axis=1), 1e-12)[:, None]
+    t = tilt[end - 1] * (1.0 - frac) + tilt[end] * frac
+    np.maximum.at(peak, end, r_eff_mm(cutter, tilt_from_axis(n, t, axis), axis))
+    return peak
 
 
 def _mesh_probe(mesh_index: MeshIndex, cutter: Cutter, tol_mm: float, stock_mm: float = 0.0):
