@@ -23,6 +23,8 @@ cannot go together, named), no file written.  An output of exit 0 (:func:`judge`
 
 The bugs this found are :data:`KNOWN`, each tolerated by the property only where it shows,
 and each kept as its smallest case, an xfail(strict) test judged in full (:data:`FOUND`).
+Last, G93: an inverse-time move without its own F word is refused at its line, as
+LinuxCNC refuses it.
 """
 
 from __future__ import annotations
@@ -41,13 +43,16 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from conftest import load_module
+from judge import RS274, canon
 from ncopt.cli.app import Exit, app
 from ncopt.contacts.geometry import MeshIndex, load_stl
 from ncopt.model import CuttingData
+from ncopt.motion import modal
 from ncopt.planning.job import job_from_values
+from ncopt.reading import refuse
 from ncopt.simulate.replay import simulate_program
 from ncopt.simulate.spindle import LAG_RPM
-from programs import MM_PER_INCH, SURFACES, bowl_strip, surface
+from programs import MM_PER_INCH, SURFACES, bowl_strip, dome, surface
 
 make_bowl = load_module("samples/make_bowl.py", "make_bowl_for_judged_options")
 #: two passes of the bowl's finish, 8 mm apart (neighbours for the D16)
@@ -717,3 +722,80 @@ def test_the_cases_it_found_fail_only_by_their_bug(found):
     if also:  # and fails by its own bug, not only by the others
         with pytest.raises(AssertionError):
             check(case, None, None, tolerate=frozenset(also[0]))
+
+
+# ------------------------------------------------------- G93 without its F ----
+# (lines after the dome's 5 set-up lines and its first cut; ``at``: the line refused)
+G93_CASES = {
+    "g1 without F": (["G93 G1 X-7.143 Y-10.000 Z6.224 F20", "G1 X-4.286 Y-10.000 Z7.041",
+                      "G94 G1 X-1.429 Y-10.000 Z7.449 F800"], 8, "g1"),
+    "F on the G93 line only": (["G93 F20", "G1 X-7.143 Y-10.000 Z6.224",
+                                "G94 G1 X-1.429 Y-10.000 Z7.449 F800"], 8, "g1"),
+    "modal move, axis words only": (["G93 G1 X-7.143 Y-10.000 Z6.224 F20",
+                                     "X-4.286 Y-10.000 Z7.041",
+                                     "G94 G1 X-1.429 Y-10.000 Z7.449 F800"], 8, "g1"),
+    "arc without F": (["G93 G1 X-7.143 Y-10.000 Z6.224 F20", "G2 X-4.286 Y-10.000 R3",
+                       "G94 G1 X-1.429 Y-10.000 Z7.449 F800"], 8, "arc"),
+}
+G93_ACCEPTED = {  # every feed move with its F; rapids and offsets need none
+    "every move with F": ["G93 G1 X-7.143 Y-10.000 Z6.224 F20",
+                          "G1 X-4.286 Y-10.000 Z7.041 F25", "G94 G1 X-1.429 F800"],
+    "rapid and offset without F": ["G93 G1 X-7.143 Y-10.000 Z6.224 F20", "G0 Z15",
+                                   "G92 X0", "G92.1", "G1 X-4.286 Y-10.000 Z7.041 F2",
+                                   "G94 G1 X-1.429 F800"],
+    "F in G94 carries on": ["G93 G1 X-7.143 Y-10.000 Z6.224 F20", "G94 F800",
+                            "G1 X-4.286 Y-10.000 Z7.041"],
+}
+
+
+def with_g93(lines: list[str]) -> str:
+    text = dome(8).decode().splitlines()
+    return "\n".join(text[:6] + lines + text[6 + len(lines):]) + "\n"
+
+
+@pytest.mark.parametrize("name", list(G93_CASES))
+def test_an_inverse_time_move_without_its_f_is_refused_at_its_line(tmp_path, name):
+    """G93: F is 1 / minutes of each move, and LinuxCNC refuses a G1/G2/G3 without its
+    own F ("F word missing with inverse time g1 move"); it was planned around with a
+    warning.  Now refused at the move's line, as F0 is (exit 3), and nothing written."""
+    lines, at, kind = G93_CASES[name]
+    path = tmp_path / "g93.nc"
+    path.write_text(with_g93(lines))
+    result = invoke(["rewrite", str(path), "--diameter", "6", "--accel", "227",
+                     "--max-rpm", "15000", "-o", str(tmp_path / "o.nc")])
+    assert result.exit_code == Exit.PROGRAM, result.stderr
+    assert result.stderr.startswith(
+        f"{path}:{at}:1: inverse-time (G93) move without its own F word (F is 1/minutes "
+        "there, of each move alone): give the move's F (LinuxCNC refuses it: \"F word "
+        f"missing with inverse time {kind} move\")\n")
+    assert not (tmp_path / "o.nc").exists()
+
+
+@pytest.mark.parametrize("name", list(G93_ACCEPTED))
+def test_inverse_time_moves_with_their_f_are_planned(tmp_path, name):
+    path = tmp_path / "g93.nc"
+    path.write_text(with_g93(G93_ACCEPTED[name]))
+    result = invoke(["rewrite", str(path), "--diameter", "6", "--accel", "227",
+                     "--max-rpm", "15000", "-o", str(tmp_path / "o.nc")])
+    assert result.exit_code == Exit.OK, result.stderr
+
+
+@pytest.mark.skipif(RS274 is None, reason="rs274 not installed (linuxcnc-uspace)")
+@pytest.mark.parametrize("name", list(G93_CASES) + list(G93_ACCEPTED))
+def test_ncopt_refuses_the_inverse_time_moves_linuxcnc_refuses(name):
+    """LinuxCNC's interpreter, the judge: it rejects the G93 cases ncopt refuses, and
+    accepts the others."""
+    refused = name in G93_CASES
+    text = with_g93(G93_CASES[name][0] if refused else G93_ACCEPTED[name])
+    if refused:
+        with pytest.raises(RuntimeError, match="F word missing with inverse time"):
+            canon(text)
+    else:
+        canon(text)
+
+
+def test_the_codes_the_refusal_reads_are_the_interpreters():
+    """ncopt.reading may not import ncopt.motion: its copies of the motion group and of the
+    codes whose axis words are no target stay equal to the interpreter's."""
+    assert refuse.MOTION_GROUP == modal.G_MOTION
+    assert refuse.NOT_A_MOVE == modal.G_NOT_A_TARGET - {530}
