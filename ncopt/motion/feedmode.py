@@ -6,10 +6,11 @@ length L in ``1 / F`` minutes, so it runs at ``F L`` mm/min.  ncopt plans that
 tip feed like a G94 feed (fz = F_tip / (z S)) and writes back the same factor
 on the block's own word: ``F_new = F_old x F_tip_new / F_tip_old = F_tip_new / L``.
 F in G93 has no unit of length, so inch programs need no conversion.  Every
-G93 feed block carries its own F (the controls refuse one without): a block
-that does not is not planned.  A rotary-only move (L = 0) keeps its F, in G93
-as in G94 (there F is degrees per minute); having no tip feed, a G93 one carries
-its F word itself where the toolpath holds feeds.
+G93 feed block carries its own F: the controls refuse one without, and so does
+ncopt, at its line (``ncopt.reading.refuse.check_inverse_time_feeds``); a block
+whose F ncopt still cannot read is not planned.  A rotary-only move (L = 0)
+keeps its F, in G93 as in G94 (there F is degrees per minute); having no tip
+feed, a G93 one carries its F word itself where the toolpath holds feeds.
 """
 
 from __future__ import annotations

@@ -286,7 +286,8 @@ _SIGNED = (("F", "a negative feed rate", "a feed rate is positive"),
 
 
 def check_signs(prog: Program, lines, executed: np.ndarray) -> None:
-    """F and S below zero on an executed line, refused at the word."""
+    """F and S below zero on an executed line, refused at the word; then an inverse-time
+    move without its own F (:func:`check_inverse_time_feeds`)."""
     for letter, what, why in _SIGNED:
         value = lines.value(letter)
         bad = np.flatnonzero(executed & (np.nan_to_num(value, nan=0.0) < 0))
@@ -296,6 +297,48 @@ def check_signs(prog: Program, lines, executed: np.ndarray) -> None:
             word = _word_text(prog, int(k))
             _raise_at_word(prog, int(k), f"`{word}` is {what} ({value[line]:g}); {why}: fix "
                            f"the {letter} word")
+    check_inverse_time_feeds(prog, lines, executed)
+
+
+# G codes x10 (as ncopt.motion.modal, which this layer may not import; tests hold them
+# equal): the motion group, and the codes whose axis words are no move's target (but G53,
+# a move in machine coordinates)
+MOTION_GROUP = {0, 10, 20, 30, 330, 382, 383, 384, 385, 730, 760, 800, 810, 820, 830, 840,
+                850, 860, 870, 880, 890}
+NOT_A_MOVE = {280, 300, 920, 921, 922, 923, 520, 100, 281, 301, 680, 682, 683, 684, 2680,
+              50, 51, 52, 53, 62, 510, 511, 720, 500, 501, 270, 290, 310, 331, 1100, 1110, 1120}
+
+
+def check_inverse_time_feeds(prog: Program, lines, executed: np.ndarray) -> None:
+    """A G1, G2 or G3 move in inverse time (G93) without an F word on its own line,
+    refused at the line: there F is 1 / minutes of that move alone, and LinuxCNC refuses
+    the move ("F word missing with inverse time g1 move", "... arc move": checked with
+    rs274, also for a G1 without axis words and a G53 move); an F on an earlier line,
+    even the G93 line's own, does not carry over.  A move ncopt could not plan, so it
+    is not planned with a feed the control would never run."""
+    feed_mode = _in_force(lines.g_group({930, 940, 950}), 940.0)
+    if not (executed & (feed_mode == 930)).any():
+        return
+    motion = _in_force(lines.g_group(MOTION_GROUP), np.nan)
+    moves = lines.has_g({10, 20, 30}) | (np.isin(motion, [10, 20, 30])
+                                          & lines.present_any("XYZABCUVWIJKR")
+                                          & ~lines.has_g(NOT_A_MOVE))
+    bad = np.flatnonzero(executed & (feed_mode == 930) & moves & ~lines.present("F")
+                         & (prog.line_kind == LineKind.WORDS))
+    if bad.size:
+        arc = motion[bad[0]] in (20, 30)
+        _raise_at_line(prog, int(bad[0]), "inverse-time (G93) move without its own F word "
+                       "(F is 1/minutes there, of each move alone): give the move's F "
+                       f"(LinuxCNC refuses it: \"F word missing with inverse time "
+                       f"{'arc' if arc else 'g1'} move\")")
+
+
+def _in_force(codes: np.ndarray, initial: float) -> np.ndarray:
+    """(n_lines,) the code of a modal group in force on each line (its own included):
+    the last one given, ``initial`` before any."""
+    given = ~np.isnan(codes)
+    last = np.maximum.accumulate(np.where(given, np.arange(codes.size), -1))
+    return np.where(last >= 0, codes[np.maximum(last, 0)], initial)
 
 
 def check_arc_centres(prog: Program, lines, arc: np.ndarray, *, plane: np.ndarray,
