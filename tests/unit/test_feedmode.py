@@ -14,6 +14,7 @@ from ncopt.motion.feedmode import inverse_time_words, tip_feed_mm_min
 from ncopt.motion.interp import interpret
 from ncopt.model import Cutter, CuttingData, Machine
 from ncopt.reading.parse import parse_text
+from ncopt.runtime.errors import NcoptError
 from ncopt.simulate.replay import simulate_program
 
 JOB = Job(machine=Machine(227, 18000), cutter=Cutter(10, 2), cutting=CuttingData(150, 0.08))
@@ -54,16 +55,23 @@ def test_tip_feed_and_words_are_inverse():
 
 def test_g93_moves_are_read_as_tip_feeds():
     tp = interpret(parse_text("G21 G90\nS1000 M3\nG0 X0 Y0 Z0\nG93\nG1 X10 F6\n"
-                              "G2 X20 Y0 I5 J0 F3\nG1 X30\nG94\nG1 X40 F100\n", "t.nc"))
+                              "G2 X20 Y0 I5 J0 F3\nG1 X30 F2\nG94\nG1 X40 F100\n", "t.nc"))
     by_line = {int(l): (f, k) for l, f, k in zip(tp.line, tp.feed_mm_min, tp.known)}
     assert by_line[4] == (60.0, True)  # 10 mm in 1/6 min
     arc = tp.line == 5
     assert np.allclose(tp.feed_mm_min[arc], 3 * 5 * np.pi) and tp.known[arc].all()
-    assert not by_line[6][1]  # a G93 block without its own F: not planned
-    assert tp.warnings == ("t.nc:7-7: not planned (an inverse-time (G93) block without its "
-                           "own F word); S/F left as programmed",)
+    assert by_line[6] == (20.0, True)  # 10 mm in 1/2 min
+    assert tp.warnings == ()
     assert tp.inverse_time.tolist() == [False, False, True] + [True] * int(arc.sum()) + \
         [True, False]
+
+
+def test_a_g93_move_without_its_own_f_is_refused_at_its_line():
+    """LinuxCNC refuses it ("F word missing with inverse time G1 move"): no F in force."""
+    with pytest.raises(NcoptError) as err:
+        interpret(parse_text("G21 G90\nS1000 M3\nG0 X0 Y0 Z0\nG93\nG1 X10 F6\n"
+                             "G1 X30\nG94\n", "t.nc"))
+    assert err.value.line == 6
 
 
 @pytest.mark.parametrize("inch", [False, True])
