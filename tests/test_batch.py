@@ -390,8 +390,11 @@ def test_an_interrupted_batch_leaves_no_partial_file(tmp_path, signame, to_group
            "--accel", "227", "--max-rpm", "15000", "-o", str(out), "--jobs", "2"]
     env = {**os.environ, "NO_COLOR": "1", "TERM": "dumb", "COLUMNS": "100",
            "XDG_CONFIG_HOME": str(tmp_path / "config")}
+    # a Ctrl-C at a terminal: SIGINT at its default in the batch, even where this suite runs
+    # in the background of a shell without job control, which starts it ignored (inherited)
     proc = subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, start_new_session=True)
+                            stderr=subprocess.PIPE, start_new_session=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         # once the batch is under way (a first file is complete)
         t0 = time.monotonic()
