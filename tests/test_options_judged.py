@@ -54,6 +54,8 @@ from ncopt.simulate.replay import simulate_program
 from ncopt.simulate.spindle import LAG_RPM
 from programs import MM_PER_INCH, SURFACES, bowl_strip, dome, surface
 
+pytestmark = pytest.mark.judge  # simulate judges every output: the judge tier
+
 make_bowl = load_module("samples/make_bowl.py", "make_bowl_for_judged_options")
 #: two passes of the bowl's finish, 8 mm apart (neighbours for the D16)
 BOWL2 = bowl_strip(make_bowl.drop_ball_tip_z_mm, (44.0, 52.0), 3.0)
