@@ -433,6 +433,7 @@ def commented_lines(draw, eol: bool):
     return text
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dialect", GRAMMARS)
 @settings(max_examples=150)
 @given(data=st.data(), newline=st.sampled_from(["\n", "\r\n"]))
