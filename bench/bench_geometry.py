@@ -45,7 +45,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from ncopt.contacts import geometry  # noqa: E402
+from ncopt.contacts import closest, geometry  # noqa: E402
 from ncopt.contacts import cutters
 from ncopt.model import Cutter  # noqa: E402
 
@@ -288,7 +288,7 @@ def run_speed(n_tri: int, n_points: int) -> None:
         timed("write binary STL (numpy-stl)", write_stl, mesh, path)
         loaded = timed("load_stl (read + merge vertices)", geometry.load_stl, path)
     print(f"  loaded {loaded.n_faces:,} triangles, {loaded.V.shape[0]:,} vertices")
-    timed("fcpw BVH build alone", geometry._closest_point_scene, loaded)
+    timed("fcpw BVH build alone", closest.closest_point_scene, loaded)
     index = timed("MeshIndex (tree + corner normals + edges)", geometry.MeshIndex, loaded)
     centres = timed(f"{n_points:,} path-ordered centres", path_centres, n_points, size, R)
     cutter = Cutter(2 * R, 2)
@@ -392,7 +392,7 @@ def run_load(stl: Path | None, rounds: int, n_points: int) -> None:
     centres = on + 8.0 * index.face_normal[face]  # a D16 ball's centres
     del index
     steps = (("load_stl (read + merge vertices)", lambda: geometry.load_stl(stl)),
-             ("fcpw BVH build alone", lambda: geometry._closest_point_scene(mesh)),
+             ("fcpw BVH build alone", lambda: closest.closest_point_scene(mesh)),
              ("MeshIndex (BVH + normals + sharp edges)", lambda: geometry.MeshIndex(mesh)),
              ("mesh_resolution_mm (edge lengths)", lambda: geometry.mesh_resolution_mm(mesh)))
     times: dict[str, list] = {label: [] for label, _ in steps}

@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 pytest.importorskip("plotly")
 pytest.importorskip("matplotlib")
 
-from ncopt.report import html  # noqa: E402
+from ncopt.report import html, plots  # noqa: E402
 from ncopt.api import rewrite_text  # noqa: E402
 from ncopt.model import Job
 from ncopt.cli.app import Exit, app  # noqa: E402
@@ -238,7 +238,7 @@ def test_a_machine_profile_sets_where_s_changes(make_bowl, bowl_stl, tmp_path):
 
 def test_a_constant_colour_gets_a_plain_scale():
     """One S for a whole pass: the colour bar spans 2 % around it, not +-0.4 RPM."""
-    lo, hi = html._colour_range(np.array([1688.0, np.nan, 1688.0]))
+    lo, hi = plots.colour_range(np.array([1688.0, np.nan, 1688.0]))
     assert hi - lo == pytest.approx(0.02 * 1688.0) and lo < 1688.0 < hi
-    assert html._colour_range(np.array([1000.0, 15000.0])) == (1000.0, 15000.0)
-    assert html._colour_range(np.array([np.nan])) == (0.0, 1.0)
+    assert plots.colour_range(np.array([1000.0, 15000.0])) == (1000.0, 15000.0)
+    assert plots.colour_range(np.array([np.nan])) == (0.0, 1.0)

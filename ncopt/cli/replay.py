@@ -227,7 +227,7 @@ def report(
 ) -> None:
     """Write one HTML page about a program (and its original): times, curves, 3D toolpath;
     a section per tool ncopt would plan (--tool N: that one), the others listed as left."""
-    from ncopt.report.html import from_programs
+    from ncopt.report.gather import from_programs
 
     job, mesh = given.job(), given.mesh
     check_report(output)

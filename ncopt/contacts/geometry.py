@@ -71,11 +71,6 @@ from ncopt.contacts.meshindex import MeshIndex
 from ncopt.contacts.normals import NORMAL_METHODS, contact_normal
 from ncopt.model import Contacts, Cutter
 
-# the pieces tests and benchmarks check one by one, under the names they use here
-from ncopt.contacts.closest import closest_on_triangles as _closest_on_triangles  # noqa: F401
-from ncopt.contacts.closest import closest_point_scene as _closest_point_scene  # noqa: F401
-from ncopt.contacts.normals import frame as _frame, offset_newton as _offset_newton  # noqa: F401
-from ncopt.contacts.rows import dot as _dot, unit as _unit  # noqa: F401
 
 __all__ = ["NORMAL_METHODS", "Closest", "EdgeLengths", "Mesh", "MeshContacts", "MeshIndex",
            "contacts_from_mesh", "load_stl", "mesh_contacts", "mesh_from_triangles",

@@ -28,9 +28,7 @@ from pathlib import Path
 from ncopt import __version__
 from ncopt.contacts.geometry import MeshIndex, load_stl
 from ncopt.report.gather import ReportData, from_rewrite, now_text
-from ncopt.report.gather import from_programs  # noqa: F401 - the CLI reads it from here
 from ncopt.report.plotlyjs import PLOTLY_FILE, plotly_js, shared_plotly
-from ncopt.report.plots import colour_range as _colour_range  # noqa: F401 - the report's colour scales
 from ncopt.report.sections import (diff_section, esc, figures_by_name, operations_table, overview,
                                    subtitle, table, tool_section, tools_table, warnings_section)
 from ncopt.runtime.errors import NcoptError, UsageError

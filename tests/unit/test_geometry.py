@@ -12,7 +12,8 @@ from scipy.spatial import ConvexHull
 from stl import Mode
 from stl import mesh as stl_mesh
 
-from ncopt.contacts import geometry
+from ncopt.contacts import closest, geometry, rows
+from ncopt.contacts import normals as mesh_normals
 from ncopt.runtime.errors import MeshError
 from ncopt.contacts.geometry import Mesh, MeshIndex, contacts_from_mesh, load_stl, mesh_contacts
 from ncopt.model import Cutter
@@ -263,7 +264,7 @@ def test_pool_gives_exactly_the_serial_answers(sphere_index):
 
 def _newton_by_rows(fr, centre, steps=2):
     """The offset Newton written on (m, 3) rows: the reference of ``_offset_newton``."""
-    dot = geometry._dot
+    dot = rows.dot
     u, v = fr.u, fr.v
     m = fr.phong(u, v)
     t = dot(centre - (fr.p0 + u[:, None] * fr.e1 + v[:, None] * fr.e2), m) / dot(m, m)
@@ -278,7 +279,7 @@ def _newton_by_rows(fr, centre, steps=2):
             t = t + dot(a, np.cross(b, rhs)) / det
         m = fr.phong(u, v)
     bary_min = np.minimum(np.minimum(u, v), 1.0 - u - v)
-    return geometry._unit(m), np.where(np.isfinite(bary_min), bary_min, -np.inf)
+    return rows.unit(m), np.where(np.isfinite(bary_min), bary_min, -np.inf)
 
 
 def test_offset_newton_by_coordinates_gives_the_bits_of_rows(sphere_index):
@@ -287,17 +288,17 @@ def test_offset_newton_by_coordinates_gives_the_bits_of_rows(sphere_index):
     centres = 24.0 * directions(5000, seed=7, max_tilt_deg=180.0)
     centres[:50] *= 20.0 / 24.0  # next to the mesh (the sphere's facets lie inside it)
     cl = sphere_index.closest(centres)
-    fr = geometry._frame(sphere_index, cl.face, cl.point_mm)
+    fr = mesh_normals.frame(sphere_index, cl.face, cl.point_mm)
     u, v = fr.u.copy(), fr.v.copy()
     u[50:60], v[60:70] = np.nan, np.inf  # a degenerate face's coordinates: NaN alike
     fr = fr._replace(u=u, v=v)
     with np.errstate(invalid="ignore"):
-        got, want = geometry._offset_newton(fr, centres), _newton_by_rows(fr, centres)
+        got, want = mesh_normals.offset_newton(fr, centres), _newton_by_rows(fr, centres)
     assert np.isneginf(got[1][50:70]).all() and np.isfinite(got[1][:50]).all()
     for a, b in zip(got, want):
         np.testing.assert_array_equal(a, b)
     a, b = np.random.default_rng(3).normal(size=(2, 1000, 3))
-    np.testing.assert_array_equal(geometry._dot(a, b), (a[:, 0] * b[:, 0] + a[:, 2] * b[:, 2])
+    np.testing.assert_array_equal(rows.dot(a, b), (a[:, 0] * b[:, 0] + a[:, 2] * b[:, 2])
                                   + a[:, 1] * b[:, 1])
 
 
@@ -489,7 +490,7 @@ def test_closest_point_on_triangles_matches_libigl_exactly():
     rng = np.random.default_rng(11)
     tri = rng.normal(size=(400, 3, 3))
     p = 2.0 * rng.normal(size=(400, 3))
-    ours = geometry._closest_on_triangles(p, tri)
+    ours = closest.closest_on_triangles(p, tri)
     for i in range(tri.shape[0]):
         _, _, theirs = igl.point_mesh_squared_distance(p[i:i + 1], tri[i], np.array([[0, 1, 2]]))
         np.testing.assert_allclose(ours[i], theirs[0], atol=1e-12)
@@ -505,7 +506,7 @@ def test_closest_matches_brute_force_distance(sphere_index):
     got = sphere_index.closest(points)
     sq, _, _ = igl.point_mesh_squared_distance(points, sphere_index.mesh.V, sphere_index.mesh.F)
     np.testing.assert_allclose(got.dist_mm, np.sqrt(sq), atol=1e-5)
-    on_face = geometry._closest_on_triangles(points, sphere_index.mesh.V[sphere_index.mesh.F[got.face]])
+    on_face = closest.closest_on_triangles(points, sphere_index.mesh.V[sphere_index.mesh.F[got.face]])
     np.testing.assert_array_equal(on_face, got.point_mm)
     np.testing.assert_allclose(np.linalg.norm(points - got.point_mm, axis=1), got.dist_mm)
 
@@ -513,7 +514,7 @@ def test_closest_matches_brute_force_distance(sphere_index):
 def test_a_triangle_with_two_equal_corners_gives_the_closest_point_of_its_edge():
     tri = np.array([[[0.0, 0, 0], [0.0, 0, 0], [10.0, 0, 0]]])
     p = np.array([[5.0, 1.0, 0.0]])
-    np.testing.assert_allclose(geometry._closest_on_triangles(p, tri), [[5.0, 0.0, 0.0]])
+    np.testing.assert_allclose(closest.closest_on_triangles(p, tri), [[5.0, 0.0, 0.0]])
 
 
 def test_a_non_finite_query_point_has_no_closest_point(sphere_index):
