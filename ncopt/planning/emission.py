@@ -150,7 +150,7 @@ def _walk(columns: tuple, fixed_rpm: np.ndarray, rules: _Rules, out: tuple) -> i
             if target >= cur + step:
                 new = _rise(target, cur, real, r, banded, step)
             elif target < cur:
-                new = _fall(target, cur, real, r, banded, step, inc2_b, inc_b)
+                new = _fall(target, cur, real, r, banded, step, inc2_b, inc_b, ratio)
             else:
                 new = cur
             if banded:
@@ -217,7 +217,7 @@ def _rise(target: float, cur: float, real: float, r: float, banded: bool,
 
 
 def _fall(target: float, cur: float, real: float, r: float, banded: bool, step: float,
-          inc2_b: float, inc_b: float) -> float:
+          inc2_b: float, inc_b: float, band: float) -> float:
     """A fall to ``target`` now, with margin against chatter.  The spindle limit
     (``inc2_b`` RPM^2, ``inc_b`` RPM over the block) may leave the real speed up to 1 RPM
     above an integer command (the ramp tracking keeps the real value); the fz band
@@ -235,6 +235,8 @@ def _fall(target: float, cur: float, real: float, r: float, banded: bool, step: 
     if 0 > low:
         low = 0
     new = floor(target - step + 1)
+    if new < target * 0.5:  # a margin of a large step falls no further than half the target
+        new = floor(target * 0.5)  # (S0 at worst, the cut then crawling at F = fz z S)
     if low > new:
         new = low
     top_b = floor(target)
@@ -243,10 +245,16 @@ def _fall(target: float, cur: float, real: float, r: float, banded: bool, step: 
             new = top_b
     else:
         new = low
-    if 0 < cur - new < step:  # a forced fall smaller than a step: a full step
-        new = cur - step
-        if band_floor > new:
-            new = band_floor
+    if 0 < cur - new < step:  # a forced fall smaller than a step: a full step, unless
+        # the spindle gets less than the fz band (ratio ``band``) short of it in the block
+        # (the rest of such a fall runs on into the blocks after it, where no F was planned
+        # for it: fz leaves its band there), or it would end at S0 or below (without
+        # --min-rpm): then onto the target, or as far as the spindle gets
+        full = cur - step
+        if full > 0 and low <= full * band:
+            new = full
+        else:  # a smaller fall: onto the target (vc), as far as the spindle gets
+            new = low if low > top_b else top_b
     return float(new)
 
 

@@ -65,8 +65,10 @@ def feed_intent(blocks, feed, s_prog, mine, machine, cut, cutter, opts, intent: 
     expected = schedule.feeds(em.s_low_rpm, em.s_high_rpm, as_cut, cut, cutter.teeth,
                               machine.max_feed_mm_min, opts.fz_policy)
     expected = np.floor(expected / q + 1e-6) * q
-    off = np.where(blocks.cutting, np.abs(feed - expected) > 1.5 * q,
-                   np.abs(feed - f0) > 1.5 * q)
+    # a cut at the stamped F0 itself is one ncopt kept as programmed (its F words too
+    # coarse for the band there): on the cutting feed, as it was the first time
+    at_f0 = np.abs(feed - f0) <= 1.5 * q
+    off = np.where(blocks.cutting, (np.abs(feed - expected) > 1.5 * q) & ~at_f0, ~at_f0)
     return s_ref, off, f0, s0
 
 

@@ -28,6 +28,9 @@ from ncopt.runtime.errors import PlanningError
 
 PLUNGE = 0.99  # a feed move down within 8 deg of the axis plunges: fz as programmed
 COARSE_MARGIN = 1.25
+#: plans of one operation at most, each keeping the cuts the last found too slow for
+#: the F words' resolution (:func:`plan_operation`)
+COARSE_ROUNDS = 8
 
 
 @dataclass(frozen=True)
@@ -100,8 +103,30 @@ def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, sour
     stamp records them (the program is an ncopt output); None: read from the program."""
     w = _window(k, view.base, scope, idx, tp, point_op)
     win, teeth = slice(w.lo, w.end), view.cutter.teeth
+    _check_feed_cap(op, cut, teeth, machine, path)
     coarse = _too_coarse(view.base.req_rpm[win] * cut.vc_m_min, view.base.cutting[win] & w.planned,
                          machine, cut, teeth, opts)
+    # the requirement says which feeds are too low for the F words' resolution; the plan
+    # may go lower still (a ramp held by the fz band): those blocks keep theirs too, and
+    # the operation is planned again around them (each round keeps more, so it ends)
+    for _ in range(COARSE_ROUNDS):
+        plan = _plan_window(k, op, view, cut, source, tp, idx, scope, w, coarse, cmd_rpm,
+                            machine, opts, path, intent)
+        late = _coarse_feeds(plan, w.mine, opts) & ~coarse
+        if not late.any():
+            break
+        coarse = coarse | late
+    cmd_rpm[win] = plan.s_cmd_rpm
+    return plan
+
+
+def _plan_window(k: int, op: Operation, view: ToolView, cut: CuttingData, source: str,
+                 tp: Toolpath, idx: schedule.BlockIndex, scope: Scope, w: "_Window",
+                 coarse: np.ndarray, cmd_rpm: np.ndarray, machine: Machine,
+                 opts: PlanOptions, path: str, intent: Intent | None) -> OpPlan:
+    """Plan the window ``w`` with the blocks ``coarse`` kept as programmed; ``cmd_rpm``:
+    (nb,) the S commanded per block so far (read, not changed)."""
+    win, teeth = slice(w.lo, w.end), view.cutter.teeth
     blocks = _window_blocks(view.base, win, w.planned & ~coarse, cut, cmd_rpm)
     fp = idx.first_point[win]
     roles = _feed_roles(tp, fp, blocks, w.mine, view.cutter, cut, machine, opts, intent)
@@ -115,7 +140,6 @@ def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, sour
     s_cmd = _commands(emitted, blocks, w.mine, cmd_rpm[win], tail)[:n]
     emitted = schedule.Emitted(emitted.s_cmd_rpm[:n], emitted.s_low_rpm[:n],
                                emitted.s_high_rpm[:n], emitted.close_s_words)
-    cmd_rpm[win] = s_cmd
     planned = blocks.planned
     reduced = w.mine & planned & (roles.off_feed | roles.plunge | ~blocks.cutting)
     feeds = lambda s_low, f_mm: _op_feeds(  # noqa: E731
@@ -130,6 +154,36 @@ def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, sour
                   passes=int(passes.pass_ids(blocks, sep).max(initial=-1)) + 1,
                   cut_time_min=_feed_time(blocks.length_mm, f, opts.f_quantum_mm_min),
                   other_time_min=other)
+
+
+def _coarse_feeds(plan: OpPlan, mine: np.ndarray, opts: PlanOptions) -> np.ndarray:
+    """(window,) the operation's cuts at the cutting feed whose planned F is too low for
+    the resolution of the program's F words to hold fz in its band (as
+    :func:`_too_coarse` judges a requirement)."""
+    q = opts.f_quantum_mm_min
+    b = plan.blocks
+    if not q > 0:
+        return np.zeros(b.cutting.shape, dtype=bool)
+    with np.errstate(invalid="ignore"):
+        low = plan.f_mm_min <= COARSE_MARGIN * q / opts.fz_tolerance
+    return b.cutting & b.planned & mine & ~plan.reduced & low
+
+
+def _check_feed_cap(op: Operation, cut: CuttingData, teeth: int, machine: Machine,
+                    path: str) -> None:
+    """Refuse a plan no spindle speed can hold: the feed cap over fz z is a speed below
+    the machine's lowest, so every cut would run at --min-rpm and --max-feed, fz far
+    under its target (a PlanningError naming both options and the figures)."""
+    s_lo, s_hi = schedule.speed_limits(machine, cut, teeth)
+    if s_hi < s_lo:
+        rev_mm = cut.fz_mm * teeth
+        name = op.name if op.name == f"T{op.tool}" else f"{op.name} (T{op.tool})"
+        raise PlanningError(
+            f"{name}: --max-feed {machine.max_feed_mm_min:g} mm/min over fz "
+            f"{cut.fz_mm:g} mm x {teeth} teeth is {s_hi:.0f} RPM, below --min-rpm "
+            f"{s_lo:g}: no spindle speed holds fz (at both limits it runs "
+            f"{100 * (1 - s_hi / s_lo):.1f} % under its target); raise --max-feed to at least "
+            f"{rev_mm * s_lo:.0f} mm/min or lower --min-rpm", path)
 
 
 @dataclass(frozen=True)

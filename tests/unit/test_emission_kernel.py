@@ -74,7 +74,7 @@ def _reference_walk(columns, fixed_rpm, rules, out):
             if target >= cur + step:
                 new = _rise(target, cur, real, r, banded, step)
             elif target < cur:
-                new = _fall(target, cur, real, r, banded, step, inc2_b, inc_b)
+                new = _fall(target, cur, real, r, banded, step, inc2_b, inc_b, ratio)
             else:
                 new = cur
             if banded:
