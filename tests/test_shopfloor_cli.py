@@ -528,3 +528,46 @@ def test_diff_into_a_pipe_answers_before_the_command_line_and_says_the_same(tmp_
          "print(' '.join(sorted(m for m in sys.modules if m.split('.')[0] in "
          "('typer', 'rich', 'numpy'))))"], capture_output=True, text=True).stdout
     assert ncopt.cli.entry.DIFFERENT == 1
+
+
+def test_diff_of_two_folders_is_diff_ru_of_their_programs(tmp_path):
+    """``ncopt diff IN OUT`` of a batch's input and output folders: a unified diff of every
+    pair of files that differ (found below each folder by the same path), ``Only in``
+    for a file of one alone, nothing for the same files; the same from the light entry
+    point and the command line (``--plain``), and the files diff -rq names."""
+    import shutil
+    import subprocess
+    import sys
+
+    a, b = tmp_path / "in", tmp_path / "out"
+    (a / "sub").mkdir(parents=True)
+    (b / "sub").mkdir(parents=True)
+    (a / "bowl.mpf").write_bytes(BOWL_MPF.read_bytes())
+    assert invoke(["rewrite", a / "bowl.mpf", "--diameter", "16", *SPINDLE, "-q",
+                   "-o", b / "bowl.mpf"]).exit_code == 0
+    (a / "sub" / "same.nc").write_bytes(b"G0 X1\n")
+    (b / "sub" / "same.nc").write_bytes(b"G0 X1\n")
+    (a / "sub" / "left.nc").write_bytes(b"G0 X2\n")
+    (b / "report.html").write_bytes(b"<html></html>\n")
+    run = lambda *args: subprocess.run([sys.executable, "-m", "ncopt", "diff", *map(str, args)],  # noqa: E731
+                                       capture_output=True)
+    quick, full = run(a, b), run("--plain", a, b)
+    assert quick.returncode == full.returncode == 1, full.stderr
+    assert quick.stdout == full.stdout and quick.stderr == b""
+    text = quick.stdout.decode()
+    assert text.startswith(f"--- {a / 'bowl.mpf'}\n+++ {b / 'bowl.mpf'}\n")
+    assert f"Only in {a / 'sub'}: left.nc\n" in text and f"Only in {b}: report.html\n" in text
+    assert "same.nc" not in text
+    if shutil.which("diff"):  # the files diff -rq names differ or stand alone here too
+        rq = subprocess.run(["diff", "-rq", str(a), str(b)], capture_output=True, text=True)
+        assert rq.returncode == 1
+        named = {w for line in rq.stdout.splitlines() for w in line.split()
+                 if w.endswith((".mpf", ".nc", ".html")) or w.endswith(":")}
+        assert str(a / "bowl.mpf") in named and f"{a / 'sub'}:" in named
+    quiet = run("-q", a, b)
+    assert quiet.returncode == 1 and quiet.stdout == b""
+    (a / "sub" / "left.nc").unlink()
+    (b / "report.html").unlink()
+    (b / "bowl.mpf").write_bytes((a / "bowl.mpf").read_bytes())
+    same = run(a, b)
+    assert same.returncode == 0 and same.stdout == b""

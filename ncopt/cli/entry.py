@@ -1,7 +1,7 @@
 """The ``ncopt`` console entry point.
 
-``ncopt diff ORIGINAL REWRITTEN`` into a pipe or a file (the unified diff review tools
-read) answers here, before the command line (typer, and pydantic through it: about 0.1 s)
+``ncopt diff ORIGINAL REWRITTEN`` (two programs, or two folders as ``diff -ru`` takes them)
+into a pipe or a file (the unified diff review tools read) answers here, before the command line (typer, and pydantic through it: about 0.1 s)
 is imported: a diff of two programs should cost about what ``diff -u`` does.  Everything
 else, and every case of ``diff`` this does not take (options, stdin, a terminal, a file it
 cannot read), goes to :func:`ncopt.cli.app.main`, which reports as every command does.
@@ -32,16 +32,28 @@ def _quick_diff(argv: list[str]) -> int | None:
     from ncopt.report.diffview import _maybe_terminal, write_unified
 
     names = argv[1:]
-    if sys.stdout is None or _maybe_terminal() or not all(os.path.isfile(n) for n in names):
+    if sys.stdout is None or _maybe_terminal():
+        return None
+    folders = all(os.path.isdir(n) for n in names)
+    if not folders and not all(os.path.isfile(n) for n in names):
         return None
     try:
-        a, b = (_read(n) for n in names)
+        a, b = (b"", b"") if folders else (_read(n) for n in names)
     except OSError:
         return None  # the command line names the file and what to do
-    if a == b:
+    if a == b and not folders:
         return 0
     try:
         try:
+            if folders:
+                from ncopt.report.diffview import folder_pairs, write_folders
+
+                if not all(os.access(p, os.R_OK) for pair in folder_pairs(*names)
+                           for p in pair[1:] if p is not None):
+                    return None  # a file it cannot read: the command line names it
+                same = not write_folders(names[0], names[1], sys.stdout)
+                sys.stdout.flush()
+                return 0 if same else DIFFERENT
             write_unified(names[0], names[1], a.decode("latin-1").splitlines(),
                           b.decode("latin-1").splitlines(), sys.stdout)
             sys.stdout.flush()

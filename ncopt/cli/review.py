@@ -3,6 +3,8 @@
 and cutting data found; ``profiles init`` writes one) and ``ncopt version``."""
 
 # No `from __future__ import annotations`: typer reads these annotations as objects.
+import os
+import sys
 from typing import Annotated, Optional
 
 import typer
@@ -11,7 +13,8 @@ from ncopt import __version__
 from ncopt.cli.core import DIFFERENT
 from ncopt.cli.options import COLOR, FOR_INSPECTION, OUTPUT, TOOLS_FILE, Given, takes
 from ncopt.runtime.errors import FileError, UsageError, ValueRangeError, from_program
-from ncopt.runtime.stdio import read_programs, require_stdout, say, write_stdout
+from ncopt.runtime.fileio import read_input
+from ncopt.runtime.stdio import listing, read_programs, require_stdout, say, write_stdout
 
 
 @takes(*FOR_INSPECTION, COLOR)
@@ -46,7 +49,9 @@ def inspect(
 @takes(COLOR)
 def diff(
     original: Annotated[str, typer.Argument(help="The original program, or - for stdin.")],
-    rewritten: Annotated[str, typer.Argument(help="The rewritten program, or - for stdin.")],
+    rewritten: Annotated[str, typer.Argument(
+        help="The rewritten program, or - for stdin (two folders: every pair of files, as "
+             "diff -ru).")],
     plain: Annotated[bool, typer.Option("--plain", rich_help_panel=OUTPUT,
                                         help="Unified diff even on a terminal.")] = False,
     no_pager: Annotated[bool, typer.Option(
@@ -59,10 +64,21 @@ def diff(
 ) -> None:
     """Show which blocks changed: side by side on a terminal (paged), a unified diff otherwise.
 
-    Exit code 0 when the files are the same, 1 when they differ (as diff does).
+    Two folders (a batch's input and its output): a unified diff of each pair of files
+    that differ, and the files of one alone, as diff -ru.  Exit code 0 when the files are
+    the same, 1 when they differ (as diff does).
     """
-    from ncopt.report.diffview import show_diff
+    from ncopt.report.diffview import show_diff, write_folders
 
+    if os.path.isdir(original) and os.path.isdir(rewritten):  # as diff -ru: unified
+        if quiet:
+            differ = write_folders(original, rewritten, sys.stdout, True, read=read_input)
+        else:
+            with listing():
+                differ = write_folders(original, rewritten, sys.stdout, read=read_input)
+        if differ:
+            raise typer.Exit(DIFFERENT)
+        return
     a, b = read_programs([original, rewritten])
     if a == b:
         return

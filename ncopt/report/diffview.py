@@ -192,6 +192,52 @@ def write_unified(a_name: str, b_name: str, a_lines, b_lines, out: TextIO) -> No
     out.write("".join(line + "\n" for line in lines))
 
 
+def folder_pairs(a_dir: str, b_dir: str) -> Iterator[tuple[str, str | None, str | None]]:
+    """The files of two folders paired by their path below each, as ``diff -r`` pairs
+    them, sorted: (that path, the file in ``a_dir`` or None, the one in ``b_dir`` or None)."""
+    def files(root: str) -> dict[str, str]:
+        found = {}
+        for folder, subfolders, names in os.walk(root):
+            subfolders.sort()
+            for name in names:
+                path = os.path.join(folder, name)
+                found[os.path.relpath(path, root)] = path
+        return found
+
+    a, b = files(a_dir), files(b_dir)
+    for rel in sorted(a.keys() | b.keys()):
+        yield rel, a.get(rel), b.get(rel)
+
+
+def write_folders(a_dir: str, b_dir: str, out: TextIO, quiet: bool = False,
+                  read=None) -> bool:
+    """``diff -ru`` of two folders (a batch's input and its output): a unified diff of
+    each pair of files that differ, ``Only in FOLDER: NAME`` for a file of one alone.
+    True when anything differs; ``quiet``: print nothing; ``read``: a file's bytes (the
+    command line's reader, which names a file it cannot read), else a plain open."""
+    read = read or _read_bytes
+    differ = False
+    for _, a_path, b_path in folder_pairs(a_dir, b_dir):
+        if a_path is None or b_path is None:
+            differ = True
+            alone = a_path or b_path
+            if not quiet:
+                out.write(f"Only in {os.path.dirname(alone)}: {os.path.basename(alone)}\n")
+            continue
+        a, b = read(a_path), read(b_path)
+        if a != b:
+            differ = True
+            if not quiet:
+                write_unified(a_path, b_path, a.decode("latin-1").splitlines(),
+                              b.decode("latin-1").splitlines(), out)
+    return differ
+
+
+def _read_bytes(path: str) -> bytes:
+    with open(path, "rb") as f:
+        return f.read()
+
+
 def _aligned_opcodes(a_lines: list[str], b_lines: list[str]) -> list | None:
     """difflib's opcodes for a rewrite and its original, or another rewrite of it: the
     lines outside the stamps paired one for one; None for any other pair of programs."""
