@@ -325,12 +325,15 @@ def _op_feeds(s_low, f_mm, feed, s_ref, reduced, cutting, plunge, max_feed,
     """F per block (mm/min; NaN: the program's own stays): the planner's on the cuts at
     the cutting feed; elsewhere fz as the program has it at most.  A plunge's F is never
     raised (the tip's centre does not cut: a D16 ball plunging at 3 m/min because S rose
-    tenfold breaks), nor F in the air (the planner counts on the program's own time
-    there); a ramp or lead-in along the surface follows S.  Where that F is within half
+    tenfold breaks); F in the air stays the program's (the planner counts on its time
+    there, and no tooth cuts); a ramp or lead-in along the surface follows S.  Where that F is within half
     the fz band ``tol`` of the program's own, the program's F stays as it is written
     (``F333.33`` is not turned into ``F333.`` for a spindle 0.2 % slower)."""
     ratio = s_low / np.where(s_ref > 0, s_ref, np.nan)
-    scaled = feed * np.where(cutting & ~plunge, ratio, np.minimum(ratio, 1.0))
+    # in the air F is the program's: the tool cuts nothing there, and the plan took the
+    # block's time at that F (a lower F would make a second rewrite plan another time)
+    scaled = feed * np.where(cutting & ~plunge, ratio,
+                             np.where(cutting, np.minimum(ratio, 1.0), 1.0))
     f = np.where(reduced, np.minimum(scaled, max_feed), f_mm)
     with np.errstate(invalid="ignore", divide="ignore"):
         close = reduced & (np.abs(f / feed - 1.0) <= 0.5 * tol) & (feed <= max_feed)
