@@ -159,8 +159,14 @@ def _walk(columns: tuple, fixed_rpm: np.ndarray, rules: _Rules, out: tuple) -> i
                 ceiling = floor(real * r)
                 if new > real and new > ceiling:
                     new = float(ceiling)
-                    if abs(new - cur) < step:  # keep changes of at least one step
-                        new = cur if cur <= ceiling else cur - step
+                    if abs(new - cur) < step:  # keep changes of at least one step, but
+                        # for a step down that the spindle, still rising, would fall by
+                        # more than the band (over this block and the next): the band
+                        # first, a smaller change
+                        if cur <= ceiling:
+                            new = cur
+                        elif (cur - step) * r >= real:
+                            new = cur - step
             cur = lo_int if lo_int > new else new
             if cur > top:  # a step from the previous command, or else the limit itself
                 cur = before if before <= top and top - before < step else float(top)

@@ -82,7 +82,10 @@ def _reference_walk(columns, fixed_rpm, rules, out):
                 if new > real and new > ceiling:
                     new = float(ceiling)
                     if abs(new - cur) < step:
-                        new = cur if cur <= ceiling else cur - step
+                        if cur <= ceiling:
+                            new = cur
+                        elif (cur - step) * r >= real:
+                            new = cur - step
             cur = lo_int if lo_int > new else new
             if cur > top:
                 cur = before if before <= top and top - before < step else float(top)
