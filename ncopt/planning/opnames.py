@@ -5,6 +5,10 @@ keyed names (hyperMILL's ``JOB:``, ``; Operation: ...``, ``(TOOLPATH NAME: ...)`
 the short comments that open an operation: Fusion's ``(PARALLEL1)`` after a blank line or
 before the tool call, names framed by dashes.  :mod:`ncopt.planning.operations` splits
 the program at them.
+
+The stamp an earlier rewrite left (:mod:`ncopt.reading.stamp`) is ncopt's, no CAM notice
+and no name: its lines are read as if absent, so an operation keeps its name in ncopt's
+rewrite of a program (``--operations NAME`` plans the same operation again).
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ import numpy as np
 
 from ncopt.model import LineKind, Program
 from ncopt.planning.toolcomments import read_comment
+from ncopt.reading.stamp import read_stamps
 
 _FREECAD = re.compile(r"^\s*\(\s*Begin operation:\s*(.*?)\s*\)\s*$", re.I)
 _ESTLCAM = re.compile(r"^\s*\(\s*No\.\s*\d+\s*:\s*(.*?)\s*\)\s*$", re.I)
@@ -49,17 +54,18 @@ def operation_comments(prog: Program) -> dict[int, str]:
     comment lines that opens after a blank line or a tool call, or that a tool call
     follows, or that notices or a tool's description open (Fusion writes a blank line,
     its notices, the name, the tool call); one framed by dashes; the last line before a
-    tool call."""
+    tool call.  The stamp's lines are skipped: the lines either side of it are neighbours."""
     found: dict[int, str] = {}
+    near = _Neighbours(frozenset(read_stamps(prog).lines))
     block: list[tuple[int, str | None, bool]] = []  # consecutive comment-only lines
     raw = np.frombuffer(prog.text.encode("latin-1"), dtype=np.uint8)
     marks = np.flatnonzero((raw == ord("(")) | (raw == ord(";")))
     comment_only = _comment_only_lines(prog)
     for i in np.unique(np.searchsorted(prog.line_start, marks, side="right") - 1).tolist():
-        if i >= prog.n_lines or not comment_only[i]:
+        if i >= prog.n_lines or not comment_only[i] or i in near.stamp:
             continue
-        if block and block[-1][0] != i - 1:
-            _block_names(prog, block, found)
+        if block and block[-1][0] != near.before(i):
+            _block_names(prog, near, block, found)
             block = []
         line = prog.line_text(i)
         direct = _named(line)
@@ -69,8 +75,29 @@ def operation_comments(prog: Program) -> dict[int, str]:
         else:
             block.append((i, *_name_or_notice(line)))
     if block:
-        _block_names(prog, block, found)
+        _block_names(prog, near, block, found)
     return found
+
+
+class _Neighbours:
+    """The lines next to a line, the stamp's lines (0-based, ``stamp``) passed over."""
+
+    def __init__(self, stamp: frozenset[int]):
+        self.stamp = stamp
+
+    def before(self, i: int) -> int:
+        """The line before line ``i`` (-1: none)."""
+        i -= 1
+        while i in self.stamp:
+            i -= 1
+        return i
+
+    def after(self, i: int) -> int:
+        """The line after line ``i`` (``n_lines``: none)."""
+        i += 1
+        while i in self.stamp:
+            i += 1
+        return i
 
 
 def _named(line: str) -> str | None:
@@ -105,20 +132,20 @@ def _name_or_notice(line: str) -> tuple[str | None, bool]:
     return (None if len(name) > 48 or "=" in name else name), False
 
 
-def _block_names(prog: Program, block: list, found: dict) -> None:
+def _block_names(prog: Program, near: _Neighbours, block: list, found: dict) -> None:
     """Mark the names of one block of consecutive comment-only lines."""
     first, last = block[0][0], block[-1][0]
     names = [(i, name) for i, name, _ in block if name]
     if not names:
         return
-    before_call = _before_tool_call(prog, last)
+    before_call = _before_tool_call(prog, near, last)
     after_notices = names[0][0] > first and all(
         notice for i, _, notice in block if i < names[0][0])  # Fusion's notices, then the name
-    if (_after_blank(prog, first) or _after_tool_call(prog, first) or before_call
+    if (_after_blank(prog, near, first) or _after_tool_call(prog, near, first) or before_call
             or after_notices):
         found.setdefault(*names[0])
     for i, name in names:
-        if _framed(prog, i):
+        if _framed(prog, near, i):
             found.setdefault(i, name)
     if before_call and names[-1][0] == last:
         found.setdefault(*names[-1])  # the line before the tool call names what follows
@@ -134,24 +161,32 @@ def _comment_only_lines(prog: Program) -> np.ndarray:
     return (kind == LineKind.BLANK) | ((kind == LineKind.WORDS) & ~other)
 
 
-def _framed(prog: Program, i: int) -> bool:
+def _framed(prog: Program, near: _Neighbours, i: int) -> bool:
     """Between dashed comment lines (CAMWorks / SolidWorks CAM)."""
-    return 0 < i < prog.n_lines - 1 and bool(_DASHES.match(prog.line_text(i - 1)))
+    j = near.before(i)
+    return j >= 0 and i < prog.n_lines - 1 and bool(_DASHES.match(prog.line_text(j)))
 
 
-def _after_blank(prog: Program, i: int) -> bool:
-    return i > 0 and not prog.line_text(i - 1).strip()
+def _after_blank(prog: Program, near: _Neighbours, i: int) -> bool:
+    j = near.before(i)
+    return j >= 0 and not prog.line_text(j).strip()
 
 
 _TOOL_CALL = re.compile(r"^\s*(?:N[0-9.]+\s*)?(?:T\s*\d+\s*M0?6|M0?6\s*T\s*\d+|T\s*\d+)\b", re.I)
 
 
-def _after_tool_call(prog: Program, i: int) -> bool:
-    return i > 0 and bool(_TOOL_CALL.match(prog.line_text(i - 1)))
+def _after_tool_call(prog: Program, near: _Neighbours, i: int) -> bool:
+    j = near.before(i)
+    return j >= 0 and bool(_TOOL_CALL.match(prog.line_text(j)))
 
 
-def _before_tool_call(prog: Program, i: int) -> bool:
-    for j in range(i + 1, min(i + 3, prog.n_lines)):
+def _before_tool_call(prog: Program, near: _Neighbours, i: int) -> bool:
+    """A tool call on one of the two lines after line ``i`` (the first not blank)."""
+    j = i
+    for _ in range(2):
+        j = near.after(j)
+        if j >= prog.n_lines:
+            break
         text = prog.line_text(j)
         if text.strip():
             return bool(_TOOL_CALL.match(text))
