@@ -365,8 +365,9 @@ PIECES = ("drill", "flat", "rough", "contour")
        st.sampled_from([333, 500, 1000]))
 def test_only_the_finish_changes_and_no_fz_rises(others, position, ramp_f):
     """Random programs mixing a finishing operation with drilling cycles, flat-tool and
-    roughing operations: every line outside the finish is byte-identical, and no block's
-    fz rises above the program's (the cut's within the band)."""
+    roughing operations: every line outside the finish is byte-identical, no cutting
+    block's fz rises above the program's (the cut's within the band), and a move in the
+    air keeps the program's F (its time is what the plan took)."""
     pieces = []
     for kind in others:
         pieces.append({"drill": lambda: drill(2), "flat": lambda: finish("FLAT1", 3, s=4000),
@@ -384,11 +385,14 @@ def test_only_the_finish_changes_and_no_fz_rises(others, position, ramp_f):
     fp = idx.first_point[lo:hi]
     prog_fz = tp.feed_mm_min[fp] / (2 * tp.spindle_rpm[fp])
     f = p.f_mm_min
-    ok = np.isfinite(f)
+    cuts = np.isfinite(f) & p.blocks.cutting
     band = 1 + JOB.options.fz_tolerance
-    fz = f[ok] / (2 * p.s_low_rpm[ok])  # at the lowest real speed of the block: its highest
-    assert np.all(fz <= prog_fz[ok] * band * (1 + 1e-9) + 1e-12)
-    assert np.all(f[p.reduced] / (2 * p.s_low_rpm[p.reduced]) <= prog_fz[p.reduced] * (1 + 1e-9))
+    fz = f[cuts] / (2 * p.s_low_rpm[cuts])  # at the lowest real speed of the block: its highest
+    assert np.all(fz <= prog_fz[cuts] * band * (1 + 1e-9) + 1e-12)
+    red = p.reduced & p.blocks.cutting
+    assert np.all(f[red] / (2 * p.s_low_rpm[red]) <= prog_fz[red] * (1 + 1e-9))
+    air = np.isfinite(f) & ~p.blocks.cutting  # no tooth cuts: the program's F, as it was
+    assert np.all(f[air] == np.minimum(tp.feed_mm_min[fp][air], JOB.machine.max_feed_mm_min))
 
 
 # ------------------------------------------------------------ one truth (#13) ----

@@ -146,3 +146,54 @@ def test_an_old_stamp_names_no_spindle_and_the_rewrite_says_so():
     assert read_stamps(parse_text(result.text)).spindle == (227.0, 15000.0)
     assert any(w.startswith("a.nc:1: the stamp of an earlier ncopt does not say which spindle")
                for w in result.summary.warnings)
+
+
+@pytest.mark.corpus
+def test_a_roughing_operation_included_is_planned_on_the_same_material_again(corpus_dir,
+                                                                            tmp_path):
+    """A roughing operation a user includes is planned where the edge meets the remaining
+    material of its step-down; its S and F words in the output no longer show it roughing,
+    so the stamp says so (``roughing ap=``) and a second rewrite plans the same (it
+    planned it at the contact before: S up to 15000 where 10868 was planned, 470 lines)."""
+    from typer.testing import CliRunner
+
+    from ncopt.cli.app import app
+
+    program = corpus_dir / "more" / "freecad_Starlink_suport.nc"
+    args = ["--diameter", "3", "--shape", "ball", "--operations", "Surface", "--accel",
+            "227", "--max-rpm", "15000", "-q"]
+    runner = CliRunner()
+    first, second = tmp_path / "o1.nc", tmp_path / "o2.nc"
+    assert runner.invoke(app, ["rewrite", str(program), *args, "-o", str(first)]).exit_code == 0
+    text = first.read_text(encoding="latin-1")
+    rough = [line for line in stamp_of(text) if " roughing ap=" in line]
+    assert len(rough) == 1 and re.fullmatch(r"\(ncopt T\? roughing ap=[\d.]+mm\)", rough[0])
+    assert max(len(line) for line in stamp_of(text)) <= 72
+    stamps = read_stamps(parse_text(text))
+    assert [st.ap_mm for st in stamps.values()] == [float(rough[0].split("=")[1][:-3])]
+    assert runner.invoke(app, ["rewrite", str(first), *args, "-o", str(second)]).exit_code == 0
+    assert second.read_bytes() == first.read_bytes()
+
+
+def test_the_stamp_is_no_operation_of_its_own_in_inspect(tmp_path):
+    """A stamp at the top of a program with no header before it belongs to the operation
+    after it: inspect lists the same operations for a program and its rewrite."""
+    from typer.testing import CliRunner
+
+    from ncopt.cli.app import app
+
+    program = tmp_path / "raster.nc"
+    program.write_text(raster())
+    out = tmp_path / "out.nc"
+    runner = CliRunner()
+    assert runner.invoke(app, ["rewrite", str(program), "--accel", "227", "--max-rpm", "15000",
+                               "-q", "-o", str(out)]).exit_code == 0
+    assert stamp_of(out.read_text())[0] == out.read_text().splitlines()[0]  # at the top
+    names = []
+    for path in (program, out):
+        shown = runner.invoke(app, ["inspect", str(path), "--json"])
+        assert shown.exit_code == 0, shown.output
+        import json
+
+        names.append([op["name"] for op in json.loads(shown.stdout)["operations"]])
+    assert names[0] == names[1] and len(names[0]) == 1

@@ -153,20 +153,8 @@ def _walk(columns: tuple, fixed_rpm: np.ndarray, rules: _Rules, out: tuple) -> i
                 new = _fall(target, cur, real, r, banded, step, inc2_b, inc_b, ratio)
             else:
                 new = cur
-            if banded:
-                # a command above the real speed (the spindle still rising, e.g. after the
-                # program's own S) may let it rise by no more than the fz band in the block
-                ceiling = floor(real * r)
-                if new > real and new > ceiling:
-                    new = float(ceiling)
-                    if abs(new - cur) < step:  # keep changes of at least one step, but
-                        # for a step down that the spindle, still rising, would fall by
-                        # more than the band (over this block and the next): the band
-                        # first, a smaller change
-                        if cur <= ceiling:
-                            new = cur
-                        elif (cur - step) * r >= real:
-                            new = cur - step
+            if banded and new > real and new > real * r:
+                new = _within_band(new, cur, real, r, step)
             cur = lo_int if lo_int > new else new
             if cur > top:  # a step from the previous command, or else the limit itself
                 cur = before if before <= top and top - before < step else float(top)
@@ -202,6 +190,24 @@ def _walk(columns: tuple, fixed_rpm: np.ndarray, rules: _Rules, out: tuple) -> i
                 length60[b] / (per_rev_mm * (1.0 if 1.0 > low else low))
                 if cut_b and per_rev else time_free[b])
     return close
+
+
+def _within_band(new: float, cur: float, real: float, r: float, step: float) -> float:
+    """A command above the real speed (the spindle still rising, e.g. after the program's
+    own S) may let it rise by no more than the fz band (ratio ``r``) in the block; and the
+    change keeps to at least one step, but for a step down that the spindle, still rising,
+    would fall by more than the band over this block and the next: the band comes first,
+    a smaller change."""
+    ceiling = math.floor(real * r)
+    if not new > ceiling:
+        return new
+    new = float(ceiling)
+    if abs(new - cur) < step:
+        if cur <= ceiling:
+            new = cur
+        elif (cur - step) * r >= real:
+            new = cur - step
+    return new
 
 
 def _rise(target: float, cur: float, real: float, r: float, banded: bool,

@@ -233,6 +233,7 @@ def _stamped_ops(prog: Program, tp: Toolpath, stamps: dict) -> list | None:
     if not ranges:
         return None
     out = []
+    own = set(getattr(stamps, "lines", None) or ())  # the stamp's lines: no piece alone
     for span in operations.spans(prog, tp):
         a = span.first_line
         for (first, last), tool, line in ranges:
@@ -240,6 +241,8 @@ def _stamped_ops(prog: Program, tp: Toolpath, stamps: dict) -> list | None:
             lo, hi = max(lo, span.first_line), min(hi, span.last_line)
             if lo > hi:
                 continue
+            if lo > a and own.issuperset(range(a, lo)):
+                lo = a  # nothing but the stamp before the planned lines
             if lo > a:
                 out.append(_piece(tp, span, a, lo - 1, False, "not planned by the rewrite "
                                   f"that stamped this program (line {line + 1})"))

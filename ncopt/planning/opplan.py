@@ -59,6 +59,7 @@ class OpPlan:
     over_target: tuple[int, float] = (0, 0.0)  # cutting blocks above their vc target, worst %
     s0_rpm: float = 0.0  # the operation's own S (the program's), for the stamp
     lines: tuple[int, int] = (0, 0)  # its (first, last) lines, 1-based, without stamp lines
+    ap_mm: float = float("nan")  # roughing: the material height its contacts took (mm)
     coarse_lines: np.ndarray | None = None  # 0-based lines kept: F words too coarse for fz
     s_low_rpm: np.ndarray | None = None  # lowest real spindle speed per block of the window
     passes: int = 0  # runs of cutting blocks (ncopt.planning.passes.pass_ids)

@@ -29,7 +29,7 @@ from ncopt.planning import regions, schedule
 from ncopt.planning.intent import Intent
 from ncopt.planning.judging import Judged, ToolChoice, judge, nothing_why, op_lines
 from ncopt.planning.meshfit import MeshFit, check_fit, mesh_fit
-from ncopt.planning.operations import CLEARING, ROUGH_LEVELS, Operation
+from ncopt.planning.operations import CLEARING, ROUGH_LEVELS, STAMPED, Operation
 from ncopt.planning.opplan import OpPlan, ToolView, plan_operation, tool_view
 from ncopt.planning.regions import Scope
 from ncopt.reading.stamp import Stamps, stamp_for
@@ -69,7 +69,7 @@ def plan_program(prog: Program, tp: Toolpath, idx: schedule.BlockIndex, job,
     for k, op in enumerate(ops):
         if not op.planned or not (scope.owner == k).any():
             continue
-        method = _method(op, job)
+        method = _method(op, job, stamp_for(judged.stamps, op.tool, op_lines(judged.stamps, op)))
         key = (op.tool, method)
         if key not in views:
             sel = (point_op >= 0) & (op_tool[np.maximum(point_op, 0)] == op.tool)
@@ -85,7 +85,7 @@ def plan_program(prog: Program, tp: Toolpath, idx: schedule.BlockIndex, job,
             plan_operation(k, op, views[key], cut, source, tp, idx, point_op, scope, cmd,
                            job.machine, job.options, prog.path,
                            _intent(judged.stamps, op.tool, lines)),
-            lines=lines))
+            lines=lines, ap_mm=method.ap_mm if method.name == "material" else float("nan")))
     if not plans:
         exc = NothingToPlan(nothing_why(ops, choices, tp), prog.path)
         exc.operations = tuple(ops)  # for reports: every operation and why it is left
@@ -109,9 +109,12 @@ def _r_floor_mm(job, judged: Judged, tool: int, cutter: Cutter) -> float:
     return min(floors, default=0.0)
 
 
-def _method(op: Operation, job) -> Method:
+def _method(op: Operation, job, stamp=None) -> Method:
     """The contact method of the job; a roughing operation a user includes is planned
-    where the edge meets the remaining material, ap = its step-down along the axis."""
+    where the edge meets the remaining material, ap = its step-down along the axis (in
+    an ncopt output, as its stamp says: its S and F words no longer show it roughing)."""
     if op.kind in (CLEARING, ROUGH_LEVELS) and np.isfinite(op.step_mm):
         return Method("material", float(op.step_mm), "axis")
+    if op.kind == STAMPED and stamp is not None and np.isfinite(stamp.ap_mm):
+        return Method("material", float(stamp.ap_mm), "axis")
     return job.method

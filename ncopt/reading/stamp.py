@@ -11,7 +11,7 @@ mark and program-number lines, where controls accept a comment.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -29,7 +29,8 @@ from ncopt.reading.stampline import INFO_BODY, STAMP_START
 #   (ncopt T4 lines=1-21902 vc=70.0198 fz=0.100144 band=2)
 #   (ncopt T4 D=16mm r=8mm z=2 S0=1393 F0=279mm/min)
 #
-# two lines per planned operation (T? where the program names no tool); its lines are
+# two lines per planned operation (a third, ``(ncopt T2 roughing ap=3mm)``, for a roughing
+# operation planned on the remaining material of its step-down) (T? where the program names no tool); its lines are
 # numbered as in the program without the stamp lines; lengths are always mm.  A re-run
 # that plans the same keeps the stamp as it is (its date and source included).  Stamps
 # of ncopt before this form are one line per operation (or per tool, ncopt 0.1) and are
@@ -46,6 +47,8 @@ _OP_A = re.compile(STAMP_START + r"T(?P<tool>-?\d+|\?) lines=(?P<a>\d+)-(?P<b>\d
 _OP_B = re.compile(STAMP_START + r"T(?P<tool>-?\d+|\?) D=(?P<d>[\d.]+)mm "
                    r"r=(?P<r>[\d.]+)mm z=(?P<z>\d+)(?: S0=(?P<s0>[\d.]+) "
                    r"F0=(?P<f0>[\d.]+)mm/min)?\s*\)?\s*$")
+# a roughing operation planned where the edge meets the remaining material (a third line)
+_OP_C = re.compile(STAMP_START + r"T(?P<tool>-?\d+|\?) roughing ap=(?P<ap>[\d.]+)mm\s*\)?\s*$")
 _INFO = re.compile(STAMP_START + INFO_BODY)
 _FROM = re.compile(STAMP_START + "from ")
 _MACHINE = re.compile(STAMP_START + "machine ")
@@ -69,6 +72,7 @@ class Stamp:
     band_pct: float | None = None
     s0_rpm: float = 0.0  # the operation's own S and cutting feed before ncopt (S0=0: the
     f0_mm_min: float = 0.0  # program gave no S); F0 0: not stamped
+    ap_mm: float = float("nan")  # roughing: the material height its contacts took, mm
 
 
 class Stamps(dict):
@@ -98,6 +102,7 @@ def read_stamps(prog: Program) -> Stamps:
     found = Stamps()
     found.lines = []
     pending = None  # (line, match of _OP_A) waiting for its second line
+    last = None  # the key of the stamp just read, for its roughing line
     for line in _comment_lines(prog, limit=400):
         text = prog.line_text(line)
         m = _OLD.match(text)
@@ -118,6 +123,13 @@ def read_stamps(prog: Program) -> Stamps:
             _add(found, at, _tool(a), _op(a), a["vc"], a["fz"], b["d"], b["r"], b["z"],
                  a if a["band"] else None, b if b["s0"] else None)
             pending = None
+            last = (_tool(a), _op(a))
+            continue
+        c = _OP_C.match(text)
+        if c and last is not None and _tool(c) == last[0]:
+            found.lines.append(line)
+            found[last] = replace(found[last], ap_mm=float(c["ap"]))
+            last = None
             continue
         if _INFO.match(text):
             found.lines.append(line)
@@ -196,6 +208,9 @@ def _plan_lines(plans, band_pct: float | None) -> list[str]:
         own = (f" S0={max(s0, 0.0):.10g} F0={f0:.10g}mm/min" if 0 < f0 < 1e12 else "")
         out.append(f"ncopt {t} D={p.cutter.diameter_mm:g}mm r={p.cutter.corner_radius_mm:g}mm "
                    f"z={p.cutter.teeth}{own}")
+        ap = getattr(p, "ap_mm", float("nan"))
+        if ap == ap:  # a roughing operation: a re-run plans it on the same material again
+            out.append(f"ncopt {t} roughing ap={ap:.10g}mm")
     return out
 
 
