@@ -51,6 +51,7 @@ _OP_B = re.compile(STAMP_START + r"T(?P<tool>-?\d+|\?) D=(?P<d>[\d.]+)mm "
 _OP_C = re.compile(STAMP_START + r"T(?P<tool>-?\d+|\?) roughing ap=(?P<ap>[\d.]+)mm\s*\)?\s*$")
 _INFO = re.compile(STAMP_START + INFO_BODY)
 _FROM = re.compile(STAMP_START + "from ")
+_TIMES = re.compile(STAMP_START + r"cutting time (?P<before>[\d.]+) -> ")
 _MACHINE = re.compile(STAMP_START + "machine ")
 _SPINDLE = re.compile(r"\bncopt machine (?:.*: )?(?P<accel>[\d.]+) rad/s2, (?P<rpm>[\d.]+) RPM")
 
@@ -262,6 +263,9 @@ def stamp_edit(prog: Program, plans, band_pct: float | None = None,
                 _decisive(present) == _decisive(stamp_lines(plans, semicolon, band_pct, info))):
             return None
         source = next((_body(ln) for ln in present if _FROM.match(ln)), None)
+        before = next((float(m["before"]) for m in map(_TIMES.match, present) if m), None)
+        if info is not None and before is not None:  # "before" is the original's, as stamped
+            info = replace(info, time_before_min=before)
         text = nl.join(stamp_lines(plans, semicolon, band_pct, info, source)) + nl
         return None if prog.text[start:end] == text else Edit(start, end, text)
     text = nl.join(stamp_lines(plans, semicolon, band_pct, info)) + nl
@@ -274,7 +278,8 @@ def stamp_edit(prog: Program, plans, band_pct: float | None = None,
 def _decisive(lines: list[str]) -> list[str]:
     """The stamp lines a re-run must find as it would write them: the plans' data and the
     machine."""
-    return [ln for ln in lines if _OP_A.match(ln) or _OP_B.match(ln) or _MACHINE.match(ln)]
+    return [ln for ln in lines if _OP_A.match(ln) or _OP_B.match(ln) or _OP_C.match(ln)
+            or _MACHINE.match(ln)]
 
 
 def _body(line: str) -> str:
