@@ -459,11 +459,20 @@ def _back_at_fixed(s_cmd: np.ndarray, planned: np.ndarray, mine: np.ndarray,
 
 
 def _over_target(blocks, emitted, machine, cut, cutter) -> tuple[int, float]:
-    """Cutting blocks where the real spindle stays above the requirement (after the
-    program's own S in a block ncopt could not plan): (count, worst vc excess %)."""
+    """Cutting blocks where the real spindle, as the planner tracked it, stays above the
+    lowest S it could plan there (the requirement within the machine's range and the
+    feed cap: after the program's own S in a block ncopt could not plan, or a forward
+    plan's rise): (count, worst vc excess %).  The excess is against the requirement
+    itself, as simulate measures vc (a block under the feed cap's S whose spindle runs
+    between the two is below its vc target, not above it).  The summary's warning
+    states at least this, and what a replay of the S and F written finds
+    (``ncopt.writing.warnings.real_top_rpm``): a plunge, whose F is never raised, lasts
+    longer than this model's cut at F = fz z S."""
     s_lo, s_hi = schedule.speed_limits(machine, cut, cutter.teeth)
-    req = np.clip(blocks.req_rpm, s_lo, s_hi)
+    need = blocks.req_rpm
     c = blocks.cutting & blocks.planned
-    excess = emitted.s_high_rpm[c] / req[c] - 1.0
-    bad = excess > 1e-3
+    high = emitted.s_high_rpm
+    with np.errstate(divide="ignore", invalid="ignore"):
+        excess = high / need - 1.0
+    bad = c & (excess > 1e-3) & (high > np.clip(need, s_lo, s_hi) * (1.0 + 1e-3))
     return (int(bad.sum()), float(100.0 * excess[bad].max()) if bad.any() else 0.0)
