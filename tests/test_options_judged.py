@@ -21,8 +21,10 @@ cannot go together, named), no file written.  An output of exit 0 (:func:`judge`
   at most the program's own feed per tooth;
 * a second rewrite with the same options changes nothing.
 
-The bugs this found are :data:`KNOWN`, each tolerated by the property only where it shows,
-and each kept as its smallest case, an xfail(strict) test judged in full (:data:`FOUND`).
+The bugs this found (S0 written, falls that ran on into a cut, a feed cap below
+--min-rpm, F words too coarse for the band, the stamp renaming an operation, a second
+rewrite changing S and F, vc excess understated) are fixed; each is kept as its smallest
+case, judged in full (:data:`FIXED`).
 Last, G93: an inverse-time move without its own F word is refused at its line, as
 LinuxCNC refuses it.
 """
@@ -343,14 +345,10 @@ def simulation_job(case: Case):
 
 
 def judge(case: Case, before: bytes, after: bytes, summary: dict, path: str,
-          mesh_index: MeshIndex | None, any_excess: bool = False,
-          output_lines: bool = False) -> Verdict:
+          mesh_index: MeshIndex | None) -> Verdict:
     """Replay the rewrite with simulate (same machine, the original's targets) and list
     what is outside the promises: S words outside the machine's range, vc above target,
-    fz out of band.  ``any_excess``: where a warning excuses vc above its target, by any
-    excess, not only the one it states (:data:`KNOWN`).  ``output_lines``: the summary
-    numbers the lines as ``after`` does (a rewrite of a rewrite: the stamp's lines come
-    first), not as ``before``."""
+    fz out of band (the summary numbers its lines as ``before``)."""
     at, k = stamp_block(before, after)
     job = simulation_job(case)
     cut = job.cutting
@@ -358,8 +356,7 @@ def judge(case: Case, before: bytes, after: bytes, summary: dict, path: str,
     report, series = simulate_program(after.decode("latin-1"), job, mesh_index, path=path,
                                       band=band)
     verdict = Verdict(report=report, s=s_out_of_range(case, before, after, at, k))
-    ex = Excuses.of(summary, path, (lambda n: n - k if n > at + k else n) if output_lines
-                    else (lambda n: n))
+    ex = Excuses.of(summary, path)
     assert not ex.unknown, f"a warning of a kind the judge does not know: {ex.unknown}"
     line = np.where(series.line > at + k, series.line - k, series.line)  # input lines
     n = len(before.decode("latin-1").splitlines()) + 1
@@ -379,7 +376,7 @@ def judge(case: Case, before: bytes, after: bytes, summary: dict, path: str,
     if ex.vc_open_from is not None:
         vc_ok |= line >= ex.vc_open_from
     limit = 100.0 * ((1.0 + ex.vc_excess_pct() / 100.0) * (1.0 + VC_SLACK_PCT / 100.0) - 1.0)
-    over = c & (vc_dev > VC_SLACK_PCT) & ~(vc_ok & ((vc_dev <= limit) | any_excess))
+    over = c & (vc_dev > VC_SLACK_PCT) & ~(vc_ok & (vc_dev <= limit))
     verdict.vc = [(int(line[i]), round(float(vc_dev[i]), 2)) for i in np.flatnonzero(over)[:5]]
     # fz: within its band on the moves at the cutting feed, but on the lines the summary
     # lists as lagging; off it, and on a plunge (whose F is never raised), at most the
@@ -457,25 +454,9 @@ def plunges(text: bytes) -> list[int]:
     return out
 
 
-# ------------------------------------------------------------- known bugs ----
-#: bugs this test found, by name: why.  The property tolerates each only where it shows
-#: (and judges everything else of that run); the minimal case of each is an xfail(strict)
-#: test below, judged in full, so a fix shows as an XPASS and the name can go.
-KNOWN = {
-    "vc excess understated": (
-        "with the forward planner, vc runs further above its target than the warnings "
-        "state: 'vc up to 32.7 % above its target ... still falling from an S that ncopt "
-        "could not plan', simulate finds +34.3 % on the plunge after a retract (its S17990 "
-        "set while the spindle still falls from S18954); with --min-rpm 2000 on the bowl, "
-        "+43.6 % and +622.6 % stated, +742.2 % found on a line the --min-rpm warning names"),
-}
-
-
-def check(case: Case, mesh_path: Path | None, mesh_index: MeshIndex | None,
-          tolerate: frozenset = frozenset(KNOWN)) -> Verdict | None:
+def check(case: Case, mesh_path: Path | None, mesh_index: MeshIndex | None) -> Verdict | None:
     """Rewrite ``case`` on the command line; if it exits 0, judge the output and rewrite it
-    again with the same options: fail on anything outside the promises, but for the
-    bugs of :data:`KNOWN` named in ``tolerate``, where the case shows them.  Returns the
+    again with the same options: fail on anything outside the promises.  Returns the
     verdict (None: the run exited 5, nothing to plan)."""
     with tempfile.TemporaryDirectory(prefix="judged") as folder:
         work = Path(folder)
@@ -492,7 +473,7 @@ def check(case: Case, mesh_path: Path | None, mesh_index: MeshIndex | None,
         assert result.exit_code == Exit.OK, result.stderr
         after = out.read_bytes()
         summary = json.loads(result.stderr)
-        verdict = held_to_promises(case, after, summary, program, mesh_index, tolerate)
+        verdict = held_to_promises(case, after, summary, program, mesh_index)
         again = work / "again.nc"
         second = invoke(case.args(out, mesh_path) + ["-o", str(again)])
         assert second.exit_code == Exit.OK, second.stderr
@@ -502,17 +483,11 @@ def check(case: Case, mesh_path: Path | None, mesh_index: MeshIndex | None,
 
 
 def held_to_promises(case: Case, after: bytes, summary: dict, path: Path,
-                     mesh_index: MeshIndex | None, tolerate: frozenset,
-                     output_lines: bool = False) -> Verdict:
-    """Judge one output (:func:`judge`) and fail on what it finds, but for the bugs of
-    :data:`KNOWN` named in ``tolerate``, where the case shows them."""
-    understated = ("vc excess understated" in tolerate
-                   and case.options.get("--planner") == "forward")
+                     mesh_index: MeshIndex | None) -> Verdict:
+    """Judge one output (:func:`judge`) and fail on what it finds."""
     verdict = judge(case, case.text, after, summary, str(path),
-                    mesh_index if case.mesh else None, any_excess=understated,
-                    output_lines=output_lines)
-    s_words = verdict.s
-    assert not s_words, f"S words outside the machine's range: {s_words}"
+                    mesh_index if case.mesh else None)
+    assert not verdict.s, f"S words outside the machine's range: {verdict.s}"
     assert not verdict.vc, f"vc above its target beyond what the warnings say: {verdict.vc}"
     assert not verdict.fz, f"fz out of its band, not named: {verdict.fz}"
     return verdict
@@ -589,20 +564,8 @@ def test_the_judge_sees_a_rewrite_break_its_promises(coarse_bowl):
     assert verdict.fz  # F no longer follows S: fz 9 % low
 
 
-# ---------------------------------------------------- the bugs it found, kept ----
+# --------------------------------------------------- the bugs it found, fixed ----
 SPINDLE = {"--accel": "227", "--max-rpm": "15000"}
-#: id: (the bug of KNOWN, its smallest case found[, other bugs of KNOWN it shows too])
-FOUND = {
-    "vc excess understated": ("vc excess understated", Case(
-        "saddle6-lifts", surface("saddle", 6, lifts=True), 4000.0, 800.0, 6.0,
-        {"--accel": "131", "--max-rpm": "40000", "--planner": "forward", "--vc": "250",
-         "--fz": "0.1"})),
-    "vc excess understated, min-rpm": ("vc excess understated", Case(
-        "bowl2", BOWL2, 1393.0, 279.0, 16.0,
-        {**SPINDLE, "--planner": "forward", "--min-rpm": "2000"})),
-}
-
-
 #: cases it found that hold now, judged in full: id -> (what was wrong, the case)
 FIXED = {
     "feed cap below min-rpm": (
@@ -659,6 +622,18 @@ FIXED = {
         "rewrite of the output exited 5, 'not named in --operations'",
         Case("dome6", surface("dome", 6), 4000.0, 800.0, 6.0,
              {**SPINDLE, "--operations": "T1"})),
+    "vc excess understated": (
+        "the forward planner: 'vc up to 32.7 % above its target ... still falling from an S "
+        "that ncopt could not plan', simulate found +35.6 % on the plunge after a retract "
+        "(S17990 while the spindle still fell from S18954)",
+        Case("saddle6-lifts", surface("saddle", 6, lifts=True), 4000.0, 800.0, 6.0,
+             {"--accel": "131", "--max-rpm": "40000", "--planner": "forward", "--vc": "250",
+              "--fz": "0.1"})),
+    "vc excess understated, min-rpm": (
+        "the forward planner with --min-rpm 2000 on the bowl: +43.6 % and +622.6 % stated, "
+        "+742.2 % found on a line the --min-rpm warning names",
+        Case("bowl2", BOWL2, 1393.0, 279.0, 16.0,
+             {**SPINDLE, "--planner": "forward", "--min-rpm": "2000"})),
 }
 
 
@@ -667,7 +642,7 @@ def test_the_cases_it_found_and_that_hold_now(fixed):
     """Judged in full, a second rewrite included; the feed cap below --min-rpm is refused
     naming both options."""
     case = FIXED[fixed][1]
-    verdict = check(case, None, None, tolerate=frozenset())
+    verdict = check(case, None, None)
     if fixed == "feed cap below min-rpm":
         assert verdict is None
         with tempfile.TemporaryDirectory(prefix="judged") as folder:
@@ -679,23 +654,6 @@ def test_the_cases_it_found_and_that_hold_now(fixed):
         assert "below --min-rpm 4800" in result.stderr, result.stderr
     else:
         assert verdict is not None and verdict.ok
-
-
-@pytest.mark.parametrize("found", [
-    pytest.param(found, marks=pytest.mark.xfail(strict=True, reason=KNOWN[FOUND[found][0]]))
-    for found in FOUND])
-def test_the_cases_it_found(found):
-    check(FOUND[found][1], None, None, tolerate=frozenset())
-
-
-@pytest.mark.parametrize("found", list(FOUND))
-def test_the_cases_it_found_fail_only_by_their_bug(found):
-    """Each found case is within its promises but for its own bug (and those it names)."""
-    bug, case, *also = FOUND[found]
-    check(case, None, None, tolerate=frozenset({bug, *(also[0] if also else ())}))
-    if also:  # and fails by its own bug, not only by the others
-        with pytest.raises(AssertionError):
-            check(case, None, None, tolerate=frozenset(also[0]))
 
 
 # ------------------------------------------------------- G93 without its F ----
