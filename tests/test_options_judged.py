@@ -634,15 +634,22 @@ FIXED = {
         "+742.2 % found on a line the --min-rpm warning names",
         Case("bowl2", BOWL2, 1393.0, 279.0, 16.0,
              {**SPINDLE, "--planner": "forward", "--min-rpm": "2000"})),
+    "a contact's onset between samples, with a mesh": (
+        "--min-rpm 14250 and a spindle that follows at once (--accel 20000): where the tool "
+        "rolls onto the bowl's rim the contact began between a sample that did not cut "
+        "yet (R_eff 0.83 mm) and one that did (0.73 mm), vc +1.89 % on a line the "
+        "--min-rpm warning did not list (the onset's requirement counts now)",
+        Case("bowl2", BOWL2, 1393.0, 279.0, 16.0,
+             {"--accel": "20000", "--max-rpm": "15000", "--min-rpm": "14250"}, mesh=True)),
 }
 
 
 @pytest.mark.parametrize("fixed", list(FIXED))
-def test_the_cases_it_found_and_that_hold_now(fixed):
+def test_the_cases_it_found_and_that_hold_now(coarse_bowl, fixed):
     """Judged in full, a second rewrite included; the feed cap below --min-rpm is refused
     naming both options."""
     case = FIXED[fixed][1]
-    verdict = check(case, None, None)
+    verdict = check(case, *(coarse_bowl if case.mesh else (None, None)))
     if fixed == "feed cap below min-rpm":
         assert verdict is None
         with tempfile.TemporaryDirectory(prefix="judged") as folder:

@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ncopt.contacts.cutters import required_rpm
-from ncopt.contacts.locate import Sampled, contacts_for
+from ncopt.contacts.locate import Sampled, contacts_for, with_onsets
 from ncopt.model import Cutter, CuttingData, Machine, Method, Motion, PlanOptions, Toolpath
 from ncopt.motion.modal import row_norms
 from ncopt.planning import passes, schedule
@@ -86,10 +86,13 @@ def tool_view(tp: Toolpath, idx: schedule.BlockIndex, tool: int, cutter: Cutter,
     sampled = contacts_for(tp, cutter, selected, mesh_index, opts.sample_mm, tol_mm, method,
                            stock_mm, r_floor_mm=r_floor_mm)
     c = sampled.contacts
+    # with a mesh, the onset of a contact lies between a sample that cuts and one that
+    # does not yet: both requirements count (with_onsets)
+    counted = with_onsets(c.cutting) if sampled.estimate is None else None
     base = schedule.blocks_from_contacts(
         idx, tp.seg_len_mm, tp.motion, tp.feed_mm_min, tp.known, tp.spindle_on,
         tp.spindle_rpm, required_rpm(c.r_eff_mm, 1.0), c.cutting, sampled.point, selected,
-        rapid_mm_min)
+        rapid_mm_min, counted)
     return ToolView(tool, cutter, sampled, base)
 
 

@@ -266,15 +266,19 @@ def block_index(line_of_point: np.ndarray) -> BlockIndex:
 
 def blocks_from_contacts(idx: BlockIndex, seg_len_mm, motion, feed_mm_min, known, spindle_on,
                          spindle_rpm, req_at_sample, cutting_at_sample, sample_point,
-                         selected, rapid_mm_min: float) -> Blocks:
+                         selected, rapid_mm_min: float, counted_at_sample=None) -> Blocks:
     """Per block: length, lowest required S along it (both end points and every
     sample between), cutting, and the duration of non-cutting blocks.
 
     ``req_at_sample`` is inf where a sample does not cut or where the contact is
     at the tool tip (R_eff = 0): the cap at S_max takes over there.
+    ``counted_at_sample``: the samples whose requirement counts (default: those that
+    cut; :func:`ncopt.contacts.locate.with_onsets` adds the last sample before a contact
+    begins or after it ends).
     """
     n = seg_len_mm.shape[0]
-    req = np.where(cutting_at_sample, req_at_sample, np.inf)
+    counted = cutting_at_sample if counted_at_sample is None else counted_at_sample
+    req = np.where(counted, req_at_sample, np.inf)
     seg_min = np.full(n, np.inf)
     np.minimum.at(seg_min, sample_point, req)
     cut_pt = np.zeros(n, dtype=bool)
