@@ -195,8 +195,6 @@ def _fast_path(raw, line_start, content_end, classes, comments: CommentForms, po
     is_num = ~is_letter & ~is_sep
     same_prev = np.zeros(idx.shape[0], dtype=bool)
     same_prev[1:] = ln[1:] == ln[:-1]
-    has_tok = np.zeros(n_lines, dtype=bool)
-    has_tok[ln[~is_sep]] = True  # lines with a word token (a comment alone: a blank line)
     bad[ln[(cc == SLASH) & same_prev]] = True  # block delete only first on the line
     prev_num = np.zeros_like(same_prev)
     prev_num[1:] = is_num[:-1]
@@ -226,6 +224,10 @@ def _fast_path(raw, line_start, content_end, classes, comments: CommentForms, po
     digits = run_sums(digits_upto, is_digit, run_at, run_last)
     run_first = num_idx[run_at]
     run_line = ln[run_first]
+    # lines with a word token (a comment alone: a blank line), marked by their numbers: a
+    # token on a line without a number is a letter without one, and the line is bad
+    has_tok = np.zeros(n_lines, dtype=bool)
+    has_tok[run_line] = True
     bad_run = (digits < 1) | (length > MAX_NUMBER_CHARS)
     bad_run[point_run[1:][point_run[1:] == point_run[:-1]]] = True  # two points
     bad[run_line[bad_run]] = True
