@@ -94,9 +94,10 @@ def parse_text(text: str, path: str = "<input>", *, dialect: str | None = None,
     if not use_fast_path:  # every line through Lark: the reference the fast path is tested against
         fast = np.zeros(n_lines, dtype=bool)
         blank = blank & False
-    keep = ~trailer[words[0]] & fast[words[0]]
-    if not keep.all():
-        words = tuple(w[keep] for w in words)
+    if trailer.any() or not use_fast_path:  # else every word is on a fast line already
+        keep = ~trailer[words[0]] & fast[words[0]]
+        if not keep.all():
+            words = tuple(w[keep] for w in words)
     fast &= ~trailer
     blank &= ~trailer
     kind = np.where(blank, LineKind.BLANK, LineKind.WORDS).astype(np.int8)
