@@ -101,32 +101,64 @@ FAST_CHUNK_LINES = 16384
 
 
 def fast_path_chunked(raw, line_start, content_end, classes, comments: CommentForms):
-    """:func:`_fast_path` over chunks of lines, results joined (same words, less memory).
+    """:func:`_fast_path` over chunks of lines, results joined (same words, less memory):
+    :func:`joined` :func:`fast_path_chunks`."""
+    return joined(fast_path_chunks(raw, line_start, content_end, classes, comments))
+
+
+def fast_path_chunks(raw, line_start, content_end, classes, comments: CommentForms) -> list:
+    """:func:`_fast_path` over chunks of lines: a list of (first line, first byte, fast,
+    blank, words), the words' lines and offsets from the chunk's first line and byte
+    (int32 where the chunk is shorter than 2 GB: a third less memory until they are
+    joined); :func:`joined` makes the program's arrays of them.  ``raw`` is not needed
+    by the join: a caller that drops it first joins with its memory free.
 
     The chunks run in a pool of threads: the work is numpy loops over bytes, which
     release the GIL (1M lines: 1.9 s serial, 1.1-1.3 s in two threads).
     """
     n_lines = line_start.shape[0] - 1
     if n_lines <= FAST_CHUNK_LINES:
-        return _fast_path(raw, line_start, content_end, classes, comments)
+        return [(0, 0) + _fast_path(raw, line_start, content_end, classes, comments)]
 
     def chunk(a: int):
         b = min(a + FAST_CHUNK_LINES, n_lines)
-        base = int(line_start[a])
-        f, bl, w = _fast_path(raw[base:int(line_start[b])], line_start[a:b + 1] - base,
-                              content_end[a:b] - base, classes, comments)
-        return f, bl, (w[0] + a, w[1], w[2], w[3] + base, w[4] + base, w[5] + base)
+        base, top = int(line_start[a]), int(line_start[b])
+        pos = np.int32 if top - base < 2**31 else np.int64
+        return (a, base) + _fast_path(raw[base:top], line_start[a:b + 1] - base,
+                                      content_end[a:b] - base, classes, comments, pos)
 
     with working_memory():  # each chunk's temporaries reuse the freed ones of the last
-        done = map_in_threads(chunk, range(0, n_lines, FAST_CHUNK_LINES), _THREADS)
-    fast, blank = np.concatenate([d[0] for d in done]), np.concatenate([d[1] for d in done])
-    parts = [list(d[2]) for d in done]
-    del done
+        return map_in_threads(chunk, range(0, n_lines, FAST_CHUNK_LINES), _THREADS)
+
+
+_WORD_DTYPES = (np.int32, np.uint8, np.float64, np.int64, np.int64, np.int64)
+
+
+def joined(chunks: list):
+    """(fast, blank, words) of the program from :func:`fast_path_chunks`: the chunks'
+    flags and words one after the other, lines and offsets counted from the program's
+    start (words: line int32, letter uint8, value float64, start, end, number start
+    int64).  The list is emptied as it is read."""
+    if len(chunks) == 1:  # the whole program, from its start, offsets int64
+        return chunks.pop()[2:]
+    fast = np.concatenate([c[2] for c in chunks])
+    blank = np.concatenate([c[3] for c in chunks])
+    parts = [[c[0], c[1]] + list(c[4]) for c in chunks]
+    chunks.clear()
+    total = sum(p[2].shape[0] for p in parts)
     words = []
-    for k in range(6):  # field by field, each chunk's part freed once joined: the peak
-        words.append(np.concatenate([p[k] for p in parts]))  # holds one field twice, not six
+    for k, dtype in enumerate(_WORD_DTYPES):  # field by field, each chunk's part freed
+        out = np.empty(total, dtype=dtype)  # once copied: the peak holds one field twice
+        at = 0
         for p in parts:
-            p[k] = None
+            w, n = p[k + 2], p[k + 2].shape[0]
+            if k in (1, 2):  # letters and values
+                out[at:at + n] = w
+            else:  # lines and offsets, from the chunk's first line and byte
+                np.add(w, dtype(p[0] if k == 0 else p[1]), out=out[at:at + n])
+            p[k + 2] = None
+            at += n
+        words.append(out)
         release_freed_memory()  # (unless a rewrite holds its memory: then it is reused)
     return fast, blank, tuple(words)
 
@@ -136,13 +168,14 @@ def fast_path_chunked(raw, line_start, content_end, classes, comments: CommentFo
 _THREADS = min(2, available_cpus())
 
 
-def _fast_path(raw, line_start, content_end, classes, comments: CommentForms):
+def _fast_path(raw, line_start, content_end, classes, comments: CommentForms, pos=np.int64):
     """Vectorised word extraction for lines of only LETTER SNUMBER pairs.
 
     ``classes`` is the (256,) byte class table of the grammar, ``comments`` the comments
     it reads (:mod:`ncopt.reading.fastcomments`: they separate words, hold none).  Returns
     (fast (n,) bool, blank (n,) bool, words) where words is a tuple of
-    arrays (line, letter, value, start, end, num_start) for the fast lines.
+    arrays (line, letter, value, start, end, num_start) for the fast lines; ``pos``: the
+    dtype of the offsets (int32 for a chunk shorter than 2 GB).
     """
     n_lines = line_start.shape[0] - 1
     cls = np.take(classes, raw)  # take: 2.5x faster than classes[raw] for uint8 raw
@@ -162,8 +195,6 @@ def _fast_path(raw, line_start, content_end, classes, comments: CommentForms):
     is_num = ~is_letter & ~is_sep
     same_prev = np.zeros(idx.shape[0], dtype=bool)
     same_prev[1:] = ln[1:] == ln[:-1]
-    has_tok = np.zeros(n_lines, dtype=bool)
-    has_tok[ln[~is_sep]] = True  # lines with a word token (a comment alone: a blank line)
     bad[ln[(cc == SLASH) & same_prev]] = True  # block delete only first on the line
     prev_num = np.zeros_like(same_prev)
     prev_num[1:] = is_num[:-1]
@@ -193,15 +224,19 @@ def _fast_path(raw, line_start, content_end, classes, comments: CommentForms):
     digits = run_sums(digits_upto, is_digit, run_at, run_last)
     run_first = num_idx[run_at]
     run_line = ln[run_first]
+    # lines with a word token (a comment alone: a blank line), marked by their numbers: a
+    # token on a line without a number is a letter without one, and the line is bad
+    has_tok = np.zeros(n_lines, dtype=bool)
+    has_tok[run_line] = True
     bad_run = (digits < 1) | (length > MAX_NUMBER_CHARS)
     bad_run[point_run[1:][point_run[1:] == point_run[:-1]]] = True  # two points
     bad[run_line[bad_run]] = True
     blank = ~has_tok & ~bad
     fast = has_tok & ~bad
     keep = fast[run_line]
-    num_start = idx[run_first][keep].astype(np.int64)
-    num_len = length[keep]
-    letter_pos = idx[run_first - 1][keep].astype(np.int64)
+    num_start = idx[run_first][keep].astype(pos)
+    num_len = length[keep].astype(pos)
+    letter_pos = idx[run_first - 1][keep].astype(pos)
     letter = raw[letter_pos] & 0xDF  # upper case ASCII
     values = number_values(raw[idx[num_idx]], is_digit, digits_upto, run_at, run_last,
                            point_at, point_run)[keep]

@@ -32,8 +32,8 @@ import numpy as np
 
 from ncopt.model import LineKind, Program
 from ncopt.reading.dialect import read_unit_codes
-from ncopt.reading.fastpath import (before_block_end, fast_path_chunked, split_lines, vector_codes,
-                                    vector_words_read_plain)
+from ncopt.reading.fastpath import (before_block_end, fast_path_chunks, joined, split_lines,
+                                    vector_codes, vector_words_read_plain)
 from ncopt.reading.fastcomments import comment_forms
 from ncopt.reading.grammar import byte_classes, dialect_name, fast_tables, grammar_path, parser
 from ncopt.reading.lineparse import parse_slow_lines
@@ -82,19 +82,22 @@ def parse_text(text: str, path: str = "<input>", *, dialect: str | None = None,
     n_lines = line_start.shape[0] - 1
     classes, block_end = fast_tables(name)
     scan, address_at = vector_words_read_plain(text, raw, line_start, content_end, name)
-    fast, blank, words = fast_path_chunked(scan, line_start,
-                                           before_block_end(raw, line_start, content_end,
-                                                            block_end), classes,
-                                           comment_forms(name))
+    chunks = fast_path_chunks(scan, line_start,
+                              before_block_end(raw, line_start, content_end, block_end),
+                              classes, comment_forms(name))
+    del data, raw, scan  # the text's bytes (and their copy, if any): not needed by the join
+    fast, blank, words = joined(chunks)
     if address_at is not None:
         words = vector_codes(words, address_at)
-    trailer = np.arange(n_lines) >= trailer_start(text, line_start, name, path)
+    trailer = np.zeros(n_lines, dtype=bool)
+    trailer[trailer_start(text, line_start, name, path):] = True
     if not use_fast_path:  # every line through Lark: the reference the fast path is tested against
         fast = np.zeros(n_lines, dtype=bool)
         blank = blank & False
-    keep = ~trailer[words[0]] & fast[words[0]]
-    if not keep.all():
-        words = tuple(w[keep] for w in words)
+    if trailer.any() or not use_fast_path:  # else every word is on a fast line already
+        keep = ~trailer[words[0]] & fast[words[0]]
+        if not keep.all():
+            words = tuple(w[keep] for w in words)
     fast &= ~trailer
     blank &= ~trailer
     kind = np.where(blank, LineKind.BLANK, LineKind.WORDS).astype(np.int8)

@@ -55,6 +55,11 @@ _KLARTEXT_BLOCK = re.compile(r"[ \t]*\d+[ \t]+(?:L[ \t]+[XYZABCIJK][+-]|LBL\b|CA
                              r"END[ \t]+PGM)", re.I)
 _MULTIPLE_OK_TABLE = np.zeros(256, dtype=bool)  # letters a block may hold several of
 _MULTIPLE_OK_TABLE[np.frombuffer(b"GMH", dtype=np.uint8)] = True
+# the bit of each letter code in a line's mask of letters (A: bit 0): none for the letters
+# a block may hold several of, nor for codes outside A-Z (numpy shifts them out: 0)
+_LETTER_BITS = np.where(_MULTIPLE_OK_TABLE, np.uint32(0),
+                        np.left_shift(np.uint32(1),
+                                      np.arange(256, dtype=np.uint32) - np.uint32(ord("A"))))
 
 
 def caret_context(src: str, col: int) -> str:
@@ -200,23 +205,21 @@ def _first_duplicate(prog: Program, macro_calls: np.ndarray) -> tuple[int, str] 
     if prog.n_words < 2:
         return None
     line_ok = (prog.line_kind == LineKind.WORDS) & ~macro_calls
-    checked = ~_MULTIPLE_OK_TABLE[prog.word_letter] & line_ok[prog.word_line]
-    bits = np.where(checked, np.left_shift(np.uint32(1), prog.word_letter.astype(np.uint32)
-                                           - np.uint32(ord("A"))), np.uint32(0))
+    bits = np.take(_LETTER_BITS, prog.word_letter)  # take: a table of 256, no per-word shift
     line = prog.word_line
     starts = np.flatnonzero(np.concatenate(([True], line[1:] != line[:-1])))
     total = np.add.reduceat(bits.astype(np.uint64), starts)
     union = np.bitwise_or.reduceat(bits, starts)
-    twice = np.flatnonzero(total != union)
+    twice = np.flatnonzero((total != union) & line_ok[line[starts]])  # a mask per line
     if twice.size == 0:
         return None
     lo = int(starts[twice[0]])
     hi = int(starts[twice[0] + 1]) if twice[0] + 1 < starts.size else prog.n_words
     seen: dict[int, int] = {}
     for k in range(lo, hi):
-        if not checked[k]:
-            continue
         letter = int(prog.word_letter[k])
+        if _MULTIPLE_OK_TABLE[letter] or not line_ok[line[k]]:
+            continue
         if letter in seen:
             a, b = _word_text(prog, seen[letter]), _word_text(prog, k)
             name = chr(letter)
