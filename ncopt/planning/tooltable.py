@@ -223,10 +223,23 @@ def _comment_lines(prog: Program) -> list[tuple[int, list[str]]]:
     if "(" not in text and ";" not in text:
         return []
     found: list[tuple[int, str]] = []
-    for lo, hi in _comment_spans(prog):
+    spans = _comment_spans(prog)
+    # the distinct comments first (findall runs in C): a comment repeated on every block
+    # ("; pt", "(pass 3)") is judged once, and where none may describe a tool, as in most
+    # long programs, no match is visited one by one
+    judged: dict[str, bool] = {}
+    for lo, hi in spans:
+        for pair in set(_COMMENT_IN_TEXT.findall(text, lo, hi)):
+            for body in pair:
+                if body not in judged:
+                    judged[body] = bool(body and may_describe_a_tool(body)
+                                        and not _NCOPT_STAMP.match(body))
+    if not any(judged.values()):
+        return []
+    for lo, hi in spans:
         for m in _COMMENT_IN_TEXT.finditer(text, lo, hi):
             body = m.group(1) if m.group(1) is not None else m.group(2)
-            if body and may_describe_a_tool(body) and not _NCOPT_STAMP.match(body):
+            if judged.get(body):
                 found.append((m.start(), body))
     if not found:
         return []
