@@ -61,8 +61,12 @@ def operation_comments(prog: Program) -> dict[int, str]:
     raw = np.frombuffer(prog.text.encode("latin-1"), dtype=np.uint8)
     marks = np.flatnonzero((raw == ord("(")) | (raw == ord(";")))
     comment_only = _comment_only_lines(prog)
-    for i in np.unique(np.searchsorted(prog.line_start, marks, side="right") - 1).tolist():
-        if i >= prog.n_lines or not comment_only[i] or i in near.stamp:
+    lines = np.searchsorted(prog.line_start, marks, side="right") - 1  # sorted: marks are
+    lines = lines[np.concatenate(([True], np.diff(lines) != 0))] if lines.size else lines
+    lines = lines[lines < prog.n_lines]
+    # a comment after the words of a block ("G1 X1 ; pt") names nothing: not visited
+    for i in lines[comment_only[lines]].tolist():
+        if i in near.stamp:
             continue
         if block and block[-1][0] != near.before(i):
             _block_names(prog, near, block, found)

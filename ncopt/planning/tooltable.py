@@ -234,9 +234,21 @@ def _comment_lines(prog: Program) -> list[tuple[int, list[str]]]:
                 if body not in judged:
                     judged[body] = bool(body and may_describe_a_tool(body)
                                         and not _NCOPT_STAMP.match(body))
-    if not any(judged.values()):
+    wanted = [body for body, tool in judged.items() if tool]
+    if not wanted:
         return []
-    for lo, hi in spans:
+    # the lines where such a comment's text occurs (found in C), each read again whole: the
+    # same matches as every match of every span, in order (no match crosses a line end)
+    hits = []
+    for body in wanted:
+        at = text.find(body)
+        while at >= 0:
+            hits.append(at)
+            at = text.find(body, at + 1)
+    hit_lines = np.searchsorted(prog.line_start, sorted(hits), side="right") - 1
+    hit_lines = hit_lines[np.concatenate(([True], np.diff(hit_lines) != 0))]
+    for line in hit_lines[hit_lines < prog.n_lines].tolist():
+        lo, hi = int(prog.line_start[line]), int(prog.line_start[line + 1])
         for m in _COMMENT_IN_TEXT.finditer(text, lo, hi):
             body = m.group(1) if m.group(1) is not None else m.group(2)
             if judged.get(body):
@@ -264,7 +276,8 @@ def _comment_spans(prog: Program) -> list[tuple[int, int]]:
     and the regular expression then scans those, not every byte (1M lines: 0.15 s)."""
     raw = np.frombuffer(prog.text.encode("latin-1"), dtype=np.uint8)
     at = np.flatnonzero((raw == ord("(")) | (raw == ord(";")))
-    lines = np.unique(np.searchsorted(prog.line_start, at, side="right") - 1)
+    lines = np.searchsorted(prog.line_start, at, side="right") - 1  # sorted, as ``at`` is
+    lines = lines[np.concatenate(([True], np.diff(lines) != 0))] if lines.size else lines
     if lines.size == 0:
         return []
     first = lines[np.concatenate(([True], np.diff(lines) > 1))]
