@@ -11,13 +11,15 @@ The same ~N-block bowl finishing program (``samples/make_bowl.py``'s generator, 
 * ``fusion``: a real Fusion 360 program (``../shared/corpus/fusion/BowlTest.nc``, 151k lines)
   with its cutting body repeated up to N blocks.
 
-Each is rewritten without a mesh (D16 ball, 2 teeth, 227 rad/s^2, 15000 RPM: the project's
-bench spindle) in its own process, one after the other in one run, and the bench prints its
+Each is rewritten without a mesh, or with ``--mesh`` with the sample bowl's mesh
+(``samples/bowl.stl``, loaded inside the timing; the fusion style, another part, is then
+left out) (D16 ball, 2 teeth, 227 rad/s^2, 15000 RPM: the project's bench spindle) in its
+own process, one after the other in one run, and the bench prints its
 wall time, its peak memory (ru_maxrss), its ratio to ``plain``, and the ratio of ``plain`` to
 a floor measured in the same run: read the plain file and split every line into address words
 with one regex, in pure Python. Machines differ by 2x from day to day: read the ratios.
 
-Run ``python bench/bench_styles.py [--blocks N] [--styles plain,semicolon,...] [--out DIR]``
+Run ``python bench/bench_styles.py [--blocks N] [--styles plain,semicolon,...] [--mesh] [--out DIR]``
 (defaults: 1,000,000 blocks, every style, ``$TMPDIR/ncopt_styles``).
 """
 
@@ -157,15 +159,18 @@ def floor_s(path: Path) -> float:
     return time.perf_counter() - t0
 
 
-def one(path: Path) -> dict:
-    """Rewrite ``path`` once without a mesh (in this process): seconds, peak MB, blocks."""
+def one(path: Path, mesh: Path | None = None) -> dict:
+    """Rewrite ``path`` once (in this process), with the bowl's mesh when given (loaded
+    inside the timing, as the command line loads it): seconds, peak MB, blocks."""
     from ncopt.api import rewrite_text
+    from ncopt.contacts.geometry import MeshIndex, load_stl
     from ncopt.model import Cutter, Job, Machine
 
     job = Job(cutter=Cutter(16.0, 2), machine=Machine(accel_rad_s2=227.0, max_rpm=15000.0))
     t0 = time.perf_counter()
     text = path.read_text(encoding="latin-1")
-    result = rewrite_text(text, job, str(path))
+    index = MeshIndex(load_stl(mesh)) if mesh is not None else None
+    result = rewrite_text(text, job, str(path), index)
     seconds = time.perf_counter() - t0
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return {"seconds": seconds, "peak_mb": peak_mb, "lines": text.count("\n"),
@@ -177,12 +182,16 @@ def main(argv=None) -> int:
     ap.add_argument("--blocks", type=int, default=1_000_000)
     ap.add_argument("--styles", default=",".join(STYLES))
     ap.add_argument("--out", type=Path, default=Path(tempfile.gettempdir()) / "ncopt_styles")
+    ap.add_argument("--mesh", action="store_true",
+                    help="with the sample bowl's mesh (samples/bowl.stl); the fusion style, "
+                         "another part, is left out")
     ap.add_argument("--one", type=Path, help=argparse.SUPPRESS)
+    ap.add_argument("--mesh-file", type=Path, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.one:
-        print(json.dumps(one(args.one)))
+        print(json.dumps(one(args.one, args.mesh_file)))
         return 0
-    styles = [s for s in args.styles.split(",") if s]
+    styles = [s for s in args.styles.split(",") if s and not (args.mesh and s == "fusion")]
     unknown = sorted(set(styles) - set(STYLES))
     if unknown:
         ap.error(f"unknown style {', '.join(unknown)}; choose from {', '.join(STYLES)}")
@@ -194,8 +203,9 @@ def main(argv=None) -> int:
     rows = {}
     print(f"{'style':<11} {'lines':>9} {'S words':>9} {'seconds':>9} {'x plain':>8} {'peak MB':>8}")
     for s in styles:
-        run = subprocess.run([sys.executable, __file__, "--one", str(paths[s])], check=True,
-                             capture_output=True, text=True, cwd=ROOT)
+        mesh = ["--mesh-file", str(ROOT / "samples/bowl.stl")] if args.mesh else []
+        run = subprocess.run([sys.executable, __file__, "--one", str(paths[s]), *mesh],
+                             check=True, capture_output=True, text=True, cwd=ROOT)
         rows[s] = json.loads(run.stdout.strip().splitlines()[-1])
         r = rows[s]
         print(f"{s:<11} {r['lines']:>9} {r['s_words']:>9} {r['seconds']:>9.2f} "
