@@ -570,7 +570,8 @@ SPINDLE = {"--accel": "227", "--max-rpm": "15000"}
 FIXED = {
     "feed cap below min-rpm": (
         "--max-feed / (fz z) below --min-rpm: S planned at --min-rpm and F at --max-feed, fz "
-        "-37.5 % on the whole cut, exit 0, no warning (now refused, exit 5, naming both)",
+        "-37.5 % on the whole cut, exit 0, no warning (now the operation is left, naming "
+        "both; alone in its program: exit 5)",
         Case("dome6", surface("dome", 6), 4000.0, 800.0, 6.0,
              {**SPINDLE, "--max-feed": "600", "--min-rpm": "4800"})),
     "S fall misjudged": (
@@ -657,8 +658,10 @@ def test_the_cases_it_found_and_that_hold_now(coarse_bowl, fixed):
             program.write_bytes(case.text)
             result = invoke(case.args(program, None) + ["-o", str(Path(folder) / "o.nc")])
         assert result.exit_code == Exit.PLANNING
-        assert result.stderr.startswith(f"{program}: T1: --max-feed 600 mm/min ")
-        assert "below --min-rpm 4800" in result.stderr, result.stderr
+        assert result.stderr.startswith(f"{program}: nothing to plan: T1 (lines 1-44): "
+                                        "--max-feed 600 mm/min over fz 0.1 mm x 2 teeth is "
+                                        "3000 RPM, below --min-rpm 4800: "), result.stderr
+        assert "raise --max-feed to at least 960 mm/min" in result.stderr
     else:
         assert verdict is not None and verdict.ok
 
@@ -738,3 +741,28 @@ def test_the_codes_the_refusal_reads_are_the_interpreters():
     codes whose axis words are no target stay equal to the interpreter's."""
     assert refuse.MOTION_GROUP == modal.G_MOTION
     assert refuse.NOT_A_MOVE == modal.G_NOT_A_TARGET - {530}
+
+
+def test_an_operation_no_spindle_speed_can_hold_is_left_and_the_others_planned(tmp_path):
+    """Two tools whose own S and F give fz 0.1 and 0.02: with --max-feed 600 and
+    --min-rpm 4800 the first would need at most 3000 RPM: it is left as programmed, with
+    the reason, and the second is planned."""
+    moves = lambda f: [ln for ln in surface("dome", 6, f_mm_min=f).decode().splitlines()  # noqa: E731
+                       if ln.startswith(("G0", "G1"))]
+    text = "\n".join(["(T1 D=6. CR=3. - ball end mill)", "(T2 D=6. CR=3. - ball end mill)",
+                      "G21 G90 G94 G17", "T1 M6", "S4000 M3", *moves(800.0), "G0 Z30",
+                      "T2 M6", "S4000 M3", *moves(160.0), "G0 Z30", "M5", "M30"]) + "\n"
+    program = tmp_path / "two.nc"
+    program.write_text(text)
+    out = tmp_path / "out.nc"
+    result = invoke(["rewrite", str(program), "--json", *[a for kv in SPINDLE.items() for a in kv],
+                     "--max-feed", "600", "--min-rpm", "4800", "-o", str(out)])
+    assert result.exit_code == Exit.OK, result.stderr
+    summary = json.loads(result.stderr)
+    ops = {op["tool"]: op for op in summary["operations"]}
+    assert ops[2]["planned"] and not ops[1]["planned"], ops
+    assert "below --min-rpm 4800" in ops[1]["reason"]
+    lines = text.splitlines()
+    first = out.read_text().splitlines()
+    at = first.index("T1 M6")
+    assert first[at:at + lines.index("T2 M6") - 3] == lines[3:lines.index("T2 M6")]

@@ -49,7 +49,8 @@ def judge(prog: Program, tp: Toolpath, job) -> Judged:
     """The operations, their cutters and cutting data, and which of them ncopt plans:
     split and classified (or as the program's ncopt stamp says), then decided (the
     cutter, --tool, --operations, block-delete lines), then each one's cutting data: an
-    operation whose data cannot be what the programmer meant is left alone.  Raises as
+    operation whose data cannot be what the programmer meant, or that no spindle speed of
+    the machine can hold, is left alone.  Raises as
     the rewrite does (UsageError for --diameter on a program of several tools, ...)."""
     stamps = read_stamps(prog)
     plannable = plannable_points(tp, job.cutting is not None)
@@ -62,7 +63,9 @@ def judge(prog: Program, tp: Toolpath, job) -> Judged:
     for k, op in enumerate(ops):
         if op.planned:
             cuts[k] = _cutting(job, tp, point_op, k, op, choices[op.tool], stamps, prog.path)
-            odd = implausible(cuts[k][0], choices[op.tool].cutter)
+            odd = (implausible(cuts[k][0], choices[op.tool].cutter)
+                   or feed_cap_below_min_rpm(cuts[k][0], choices[op.tool].cutter.teeth,
+                                             job.machine))
             if odd:
                 ops[k] = replace(op, planned=False, reason=odd)
     return Judged(ops, choices, stamps, _point_ops(tp, ops, plannable), cuts)
@@ -325,3 +328,18 @@ def nothing_why(ops, choices, tp: Toolpath | None = None) -> str:
 
 
 NAMES_PER_REASON = 3  # operations named before "and N more" in a "nothing to plan" row
+
+
+def feed_cap_below_min_rpm(cut: CuttingData, teeth: int, machine) -> str:
+    """Why no spindle speed holds fz ("" when one does): --max-feed over fz z is a speed
+    below the machine's lowest, so every cut would run at --min-rpm and --max-feed, fz far
+    under its target."""
+    rev_mm = cut.fz_mm * teeth
+    s_hi = machine.max_feed_mm_min / rev_mm if rev_mm > 0 else float("inf")
+    if not s_hi < machine.min_rpm:
+        return ""
+    return (f"--max-feed {machine.max_feed_mm_min:g} mm/min over fz {cut.fz_mm:g} mm x "
+            f"{teeth} teeth is {s_hi:.0f} RPM, below --min-rpm {machine.min_rpm:g}: no "
+            f"spindle speed holds fz (at both limits it runs "
+            f"{100 * (1 - s_hi / machine.min_rpm):.1f} % under its target); raise --max-feed "
+            f"to at least {rev_mm * machine.min_rpm:.0f} mm/min or lower --min-rpm")

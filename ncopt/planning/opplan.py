@@ -107,7 +107,6 @@ def plan_operation(k: int, op: Operation, view: ToolView, cut: CuttingData, sour
     stamp records them (the program is an ncopt output); None: read from the program."""
     w = _window(k, view.base, scope, idx, tp, point_op)
     win, teeth = slice(w.lo, w.end), view.cutter.teeth
-    _check_feed_cap(op, cut, teeth, machine, path)
     coarse = _too_coarse(view.base.req_rpm[win] * cut.vc_m_min, view.base.cutting[win] & w.planned,
                          machine, cut, teeth, opts)
     # the requirement says which feeds are too low for the F words' resolution; the plan
@@ -171,23 +170,6 @@ def _coarse_feeds(plan: OpPlan, mine: np.ndarray, opts: PlanOptions) -> np.ndarr
     with np.errstate(invalid="ignore"):
         low = plan.f_mm_min <= COARSE_MARGIN * q / opts.fz_tolerance
     return b.cutting & b.planned & mine & ~plan.reduced & low
-
-
-def _check_feed_cap(op: Operation, cut: CuttingData, teeth: int, machine: Machine,
-                    path: str) -> None:
-    """Refuse a plan no spindle speed can hold: the feed cap over fz z is a speed below
-    the machine's lowest, so every cut would run at --min-rpm and --max-feed, fz far
-    under its target (a PlanningError naming both options and the figures)."""
-    s_lo, s_hi = schedule.speed_limits(machine, cut, teeth)
-    if s_hi < s_lo:
-        rev_mm = cut.fz_mm * teeth
-        name = op.name if op.name == f"T{op.tool}" else f"{op.name} (T{op.tool})"
-        raise PlanningError(
-            f"{name}: --max-feed {machine.max_feed_mm_min:g} mm/min over fz "
-            f"{cut.fz_mm:g} mm x {teeth} teeth is {s_hi:.0f} RPM, below --min-rpm "
-            f"{s_lo:g}: no spindle speed holds fz (at both limits it runs "
-            f"{100 * (1 - s_hi / s_lo):.1f} % under its target); raise --max-feed to at least "
-            f"{rev_mm * s_lo:.0f} mm/min or lower --min-rpm", path)
 
 
 @dataclass(frozen=True)
