@@ -97,12 +97,32 @@ def _each(fn, *args) -> np.ndarray:
     return np.array([fn(*xs) for xs in zip(*(a.tolist() for a in args))], dtype=np.float64)
 
 
+# arcs worked out together at most (arcs_points): their temporaries bounded
+ARC_CHUNK = 65536
+
+
 def arcs_points(prog, lines, modal, at: np.ndarray, p0: np.ndarray, p1: np.ndarray,
                 tol_mm: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`arc_points` for many arcs at once: the arcs on lines ``at`` (k,) from ``p0``
     to ``p1`` ((k, 3) mm).  Returns (points per arc (k,), points (sum, 3), lengths (sum,)),
     bit for bit what :func:`arc_points` gives arc by arc (tested); an arc it would refuse
-    is refused by it, with its message, the first such arc in program order."""
+    is refused by it, with its message, the first such arc in program order.
+
+    Every arc is worked out on its own, so they go ``ARC_CHUNK`` at a time: the same
+    values, and the temporaries of a million arcs (some thirty arrays of them) are not
+    all held at once (1M arcs: 1.08 GB at the interpretation's peak, against 0.51 GB for the
+    same path in straight moves)."""
+    k = at.shape[0]
+    if k <= ARC_CHUNK:
+        return _arcs_points(prog, lines, modal, at, p0, p1, tol_mm)
+    parts = [_arcs_points(prog, lines, modal, at[i:i + ARC_CHUNK], p0[i:i + ARC_CHUNK],
+                          p1[i:i + ARC_CHUNK], tol_mm) for i in range(0, k, ARC_CHUNK)]
+    return tuple(np.concatenate([part[j] for part in parts]) for j in range(3))
+
+
+def _arcs_points(prog, lines, modal, at: np.ndarray, p0: np.ndarray, p1: np.ndarray,
+                 tol_mm: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`arcs_points` for one chunk of arcs."""
     k = at.shape[0]
     if k == 0:
         return np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0)

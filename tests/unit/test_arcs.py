@@ -126,3 +126,14 @@ def test_refused_arcs_are_refused_with_the_reference_message(arc):
     text = f"G17 G21 G0 X10 Y0 Z0\nG1 X10 F500\nG2 X0 Y10 R10\n{arc}\n"
     a, b = _both(text)
     assert isinstance(a, str) and a == b
+
+
+@settings(max_examples=60)
+@given(arc_programs())
+def test_arcs_in_chunks_are_the_reference_bit_for_bit(text):
+    """Arcs go ARC_CHUNK at a time (memory): with chunks of three, the same bits, and a
+    refused arc the first in program order as arc by arc."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(arcs_module, "ARC_CHUNK", 3)
+        chunked = _both(text)
+    _same(chunked[0], _both(text)[1])
