@@ -571,3 +571,47 @@ def test_diff_of_two_folders_is_diff_ru_of_their_programs(tmp_path):
     (b / "bowl.mpf").write_bytes((a / "bowl.mpf").read_bytes())
     same = run(a, b)
     assert same.returncode == 0 and same.stdout == b""
+
+
+def test_diff_of_folders_says_what_diff_ru_says_of_other_entries(tmp_path):
+    """Folders linked in are followed (each once), a folder of one side alone is one
+    ``Only in`` line, a fifo is never opened (it would wait for a writer), binary files
+    and entries of different kinds are named as diff -ru names them, and files whose
+    lines differ only in their ends say so: each from the light entry point and the
+    command line alike, exit 1."""
+    import subprocess
+    import sys
+
+    a, b = tmp_path / "A", tmp_path / "B"
+    for side in (a, b):
+        (side / "real").mkdir(parents=True)
+        os.mkfifo(side / "pipe")
+    (a / "real" / "p.nc").write_text("G1 X1\n")
+    (b / "real" / "p.nc").write_text("G1 X2\n")
+    (a / "linked").symlink_to(a / "real")  # followed: compared as a folder of its own
+    (b / "linked").symlink_to(b / "real")
+    (a / "real" / "loop").symlink_to(a)  # a loop ends
+    (b / "real" / "loop").symlink_to(b)
+    (a / "empty").mkdir()
+    (a / "f").write_text("x\n")
+    (b / "f").mkdir()
+    (a / "bin").write_bytes(b"a\0b")
+    (b / "bin").write_bytes(b"a\0c")
+    (a / "crlf.nc").write_bytes(b"G1 X1\r\n")
+    (b / "crlf.nc").write_bytes(b"G1 X1\n")
+    run = lambda *args: subprocess.run([sys.executable, "-m", "ncopt", "diff", *map(str, args)],  # noqa: E731
+                                       capture_output=True, timeout=60)
+    quick, full = run(a, b), run("--plain", a, b)
+    assert quick.returncode == full.returncode == 1, full.stderr
+    assert quick.stdout == full.stdout
+    text = quick.stdout.decode()
+    assert f"--- {a / 'linked' / 'p.nc'}\n+++ {b / 'linked' / 'p.nc'}\n" in text
+    assert f"--- {a / 'real' / 'p.nc'}\n" in text
+    assert f"Only in {a}: empty\n" in text
+    assert f"File {a / 'f'} is a regular file while file {b / 'f'} is a directory\n" in text
+    assert f"File {a / 'pipe'} is a fifo while file {b / 'pipe'} is a fifo\n" in text
+    assert f"Binary files {a / 'bin'} and {b / 'bin'} differ\n" in text
+    assert f"Files {a / 'crlf.nc'} and {b / 'crlf.nc'} differ only in their line ends\n" in text
+    (b / "empty").mkdir()
+    only_empty = run(a / "empty", b / "empty")
+    assert only_empty.returncode == 0 and only_empty.stdout == b""

@@ -55,7 +55,7 @@ def _quick_diff(argv: list[str]) -> int | None:
                 sys.stdout.flush()
                 return 0 if same else DIFFERENT
             write_unified(names[0], names[1], a.decode("latin-1").splitlines(),
-                          b.decode("latin-1").splitlines(), sys.stdout)
+                          b.decode("latin-1").splitlines(), sys.stdout, same_lines_note=True)
             sys.stdout.flush()
         except BrokenPipeError:  # the reader has seen enough, as for the command line
             from ncopt.runtime.stdio import silence_stdout

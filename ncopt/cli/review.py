@@ -74,6 +74,7 @@ def diff(
         if quiet:
             differ = write_folders(original, rewritten, sys.stdout, True, read=read_input)
         else:
+            differ = True  # a reader that stops early (| head) saw a difference
             with listing():
                 differ = write_folders(original, rewritten, sys.stdout, read=read_input)
         if differ:

@@ -65,7 +65,7 @@ def judge(prog: Program, tp: Toolpath, job) -> Judged:
             cuts[k] = _cutting(job, tp, point_op, k, op, choices[op.tool], stamps, prog.path)
             odd = (implausible(cuts[k][0], choices[op.tool].cutter)
                    or feed_cap_below_min_rpm(cuts[k][0], choices[op.tool].cutter.teeth,
-                                             job.machine))
+                                             job.machine, job.options.fz_tolerance))
             if odd:
                 ops[k] = replace(op, planned=False, reason=odd)
     return Judged(ops, choices, stamps, _point_ops(tp, ops, plannable), cuts)
@@ -330,13 +330,13 @@ def nothing_why(ops, choices, tp: Toolpath | None = None) -> str:
 NAMES_PER_REASON = 3  # operations named before "and N more" in a "nothing to plan" row
 
 
-def feed_cap_below_min_rpm(cut: CuttingData, teeth: int, machine) -> str:
+def feed_cap_below_min_rpm(cut: CuttingData, teeth: int, machine, band: float = 0.0) -> str:
     """Why no spindle speed holds fz ("" when one does): --max-feed over fz z is a speed
-    below the machine's lowest, so every cut would run at --min-rpm and --max-feed, fz far
-    under its target."""
+    below the machine's lowest by more than the fz band (a share), so every cut would run
+    at --min-rpm and --max-feed, fz under its band."""
     rev_mm = cut.fz_mm * teeth
     s_hi = machine.max_feed_mm_min / rev_mm if rev_mm > 0 else float("inf")
-    if not s_hi < machine.min_rpm:
+    if not s_hi < machine.min_rpm * (1.0 - band):
         return ""
     return (f"--max-feed {machine.max_feed_mm_min:g} mm/min over fz {cut.fz_mm:g} mm x "
             f"{teeth} teeth is {s_hi:.0f} RPM, below --min-rpm {machine.min_rpm:g}: no "
