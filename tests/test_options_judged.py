@@ -290,7 +290,7 @@ class Excuses:
 #: above the machine's), or fz at the program's own feed per tooth off the cutting feed
 QUIET_WARNINGS = ("runs where the toolpath cannot show the contact",
                   "runs below the top of the cut where the mesh has no part",
-                  "is above the machine's", "blocks off the cutting feed",
+                  "is above the machine's", "off the cutting feed",
                   "the spindle cannot follow the S words")
 
 

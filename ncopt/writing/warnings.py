@@ -78,11 +78,13 @@ def _plan_notes(prog: Program, tp: Toolpath, idx: BlockIndex, work: Work, p: OpP
                    "program's F words to hold fz within its band (write F with more "
                    "decimals to plan them)")
     out.extend(_unknown_warning(prog, tp, work, p))
-    if p.reduced.any():
+    scaled = int((p.reduced & p.blocks.cutting).sum())  # in the air F stays as written
+    if scaled:
         op = work.ops[p.op]
-        out.append(f"{prog.path}: {op.name}: {int(p.reduced.sum())} blocks off the cutting "
-                   f"feed {p.cutting_feed_mm_min:g} mm/min or in the air (plunges, ramps, "
-                   "lead-ins, links) keep the program's feed per tooth: F scaled with S")
+        out.append(f"{prog.path}: {op.name}: {scaled} block{'s' if scaled > 1 else ''} off "
+                   f"the cutting feed {p.cutting_feed_mm_min:g} mm/min (plunges, ramps, "
+                   f"lead-ins into the part) keep{'' if scaled > 1 else 's'} the program's "
+                   "feed per tooth: F scaled with S")
     return out
 
 
