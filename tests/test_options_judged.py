@@ -642,6 +642,13 @@ FIXED = {
         "--min-rpm warning did not list (the onset's requirement counts now)",
         Case("bowl2", BOWL2, 1393.0, 279.0, 16.0,
              {"--accel": "20000", "--max-rpm": "15000", "--min-rpm": "14250"}, mesh=True)),
+    "F for a spindle start that is not written": (
+        "--fz-band 0.3 --min-rpm-step 4000 --planner forward, the dome at S2000 F300: the "
+        "spindle start planned at S5402, the links before the blocks kept as programmed "
+        "written back to S2000, and the cuts after them given F for 3800 RPM: fz +97 %",
+        Case("dome6", surface("dome", 6, s_rpm=2000, f_mm_min=300.0), 2000.0, 300.0, 6.0,
+             {"--accel": "50", "--max-rpm": "15000", "--fz-band": "0.3",
+              "--min-rpm-step": "4000", "--planner": "forward"})),
 }
 
 

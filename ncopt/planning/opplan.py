@@ -130,7 +130,7 @@ def _plan_window(k: int, op: Operation, view: ToolView, cut: CuttingData, source
     """Plan the window ``w`` with the blocks ``coarse`` kept as programmed; ``cmd_rpm``:
     (nb,) the S commanded per block so far (read, not changed)."""
     win, teeth = slice(w.lo, w.end), view.cutter.teeth
-    blocks = _window_blocks(view.base, win, w.planned & ~coarse, cut, cmd_rpm)
+    blocks = _window_blocks(view.base, win, w.planned & ~coarse, cut, cmd_rpm, w.mine)
     fp = idx.first_point[win]
     roles = _feed_roles(tp, fp, blocks, w.mine, view.cutter, cut, machine, opts, intent)
     blocks = replace(blocks, k_scale=_k_scale(blocks, roles, cut, teeth))
@@ -212,15 +212,35 @@ def _window(k: int, base: schedule.Blocks, scope: Scope, idx: schedule.BlockInde
 
 
 def _window_blocks(base: schedule.Blocks, win: slice, planned: np.ndarray, cut: CuttingData,
-                   cmd_rpm: np.ndarray) -> schedule.Blocks:
+                   cmd_rpm: np.ndarray, mine: np.ndarray) -> schedule.Blocks:
     """The planner's view of the window: the tool's blocks at the operation's vc, the S
     commanded so far (``cmd_rpm``) where ncopt does not plan."""
+    fixed_rpm = cmd_rpm[win].copy()
+    planned = _tie_links(planned, mine, base.running[win], fixed_rpm)
     cutting = base.cutting[win] & planned
     return schedule.Blocks(
         length_mm=base.length_mm[win], req_rpm=base.req_rpm[win] * cut.vc_m_min,
         cutting=cutting, planned=planned, time_s=base.time_s[win],
-        fixed_rpm=cmd_rpm[win].copy(), spindle_start=base.spindle_start[win],
+        fixed_rpm=fixed_rpm, spindle_start=base.spindle_start[win],
         running=base.running[win], k_limited=cutting)
+
+
+def _tie_links(planned: np.ndarray, mine: np.ndarray, running: np.ndarray,
+               fixed_rpm: np.ndarray) -> np.ndarray:
+    """The link moves just before a block that keeps the program's S carry that S
+    (:func:`_back_at_fixed` writes it there): fixed at it for the plan too, in place in
+    ``fixed_rpm``, so that the spindle the plan tracks is the one those words give (a
+    spindle start planned at S5402 and written S2000 put F on the cuts after for 3800 RPM:
+    fz +97 %).  Returns the blocks still planned."""
+    out = planned.copy()
+    link = planned & ~mine
+    for i in np.flatnonzero(~planned[1:] & running[1:] & planned[:-1]).tolist():
+        j = i  # block i + 1 keeps its S; the links before it carry it
+        while j >= 0 and link[j]:
+            out[j] = False
+            fixed_rpm[j] = fixed_rpm[i + 1]
+            j -= 1
+    return out
 
 
 @dataclass(frozen=True)
