@@ -649,6 +649,18 @@ FIXED = {
         Case("dome6", surface("dome", 6, s_rpm=2000, f_mm_min=300.0), 2000.0, 300.0, 6.0,
              {"--accel": "50", "--max-rpm": "15000", "--fz-band": "0.3",
               "--min-rpm-step": "4000", "--planner": "forward"})),
+    "a program's S above the machine's": (
+        "the dome at S9000 F300 on an 8000 RPM machine, --vc 30 --fz 0.02 --fz-band 1: "
+        "between blocks kept as programmed (S9000), F planned for a spindle at 8450 RPM "
+        "the machine cannot reach, fz +5.6 %",
+        Case("dome6", surface("dome", 6, s_rpm=9000, f_mm_min=300.0), 9000.0, 300.0, 6.0,
+             {"--accel": "227", "--max-rpm": "8000", "--vc": "30", "--fz": "0.02",
+              "--fz-band": "1"})),
+    "a program's S above the machine's, CR LF": (
+        "the same with --vc 10 --fz 0.1 --fz-band 0.3: S8000 F1770, fz +10.6 %",
+        Case("dome6", surface("dome", 6, s_rpm=9000, f_mm_min=300.0, crlf=True), 9000.0,
+             300.0, 6.0, {"--accel": "227", "--max-rpm": "8000", "--vc": "10", "--fz": "0.1",
+                          "--fz-band": "0.3"})),
 }
 
 

@@ -130,7 +130,8 @@ def _plan_window(k: int, op: Operation, view: ToolView, cut: CuttingData, source
     """Plan the window ``w`` with the blocks ``coarse`` kept as programmed; ``cmd_rpm``:
     (nb,) the S commanded per block so far (read, not changed)."""
     win, teeth = slice(w.lo, w.end), view.cutter.teeth
-    blocks = _window_blocks(view.base, win, w.planned & ~coarse, cut, cmd_rpm, w.mine)
+    blocks = _window_blocks(view.base, win, w.planned & ~coarse, cut, cmd_rpm, w.mine,
+                            machine.max_rpm)
     fp = idx.first_point[win]
     roles = _feed_roles(tp, fp, blocks, w.mine, view.cutter, cut, machine, opts, intent)
     blocks = replace(blocks, k_scale=_k_scale(blocks, roles, cut, teeth))
@@ -212,10 +213,15 @@ def _window(k: int, base: schedule.Blocks, scope: Scope, idx: schedule.BlockInde
 
 
 def _window_blocks(base: schedule.Blocks, win: slice, planned: np.ndarray, cut: CuttingData,
-                   cmd_rpm: np.ndarray, mine: np.ndarray) -> schedule.Blocks:
+                   cmd_rpm: np.ndarray, mine: np.ndarray,
+                   max_rpm: float = np.inf) -> schedule.Blocks:
     """The planner's view of the window: the tool's blocks at the operation's vc, the S
-    commanded so far (``cmd_rpm``) where ncopt does not plan."""
-    fixed_rpm = cmd_rpm[win].copy()
+    commanded so far (``cmd_rpm``) where ncopt does not plan, as the spindle runs it (at
+    most ``max_rpm``)."""
+    # a program's S above the machine's, on a block ncopt leaves: its spindle turns at most
+    # at the machine's (the planned blocks keep their S as written: an ncopt output's are
+    # replayed on the spindle they were planned for, ncopt.planning.intent)
+    fixed_rpm = np.where(planned, cmd_rpm[win], np.minimum(cmd_rpm[win], max_rpm))
     planned = _tie_links(planned, mine, base.running[win], fixed_rpm)
     cutting = base.cutting[win] & planned
     return schedule.Blocks(
