@@ -664,12 +664,19 @@ FIXED = {
 }
 
 
+#: the cases of FIXED that now leave their one operation as programmed (said, exit 5)
+LEFT_WHOLE = {"feed cap below min-rpm", "F too coarse for the band",
+              "F for a spindle start that is not written"}
+
+
 @pytest.mark.parametrize("fixed", list(FIXED))
 def test_the_cases_it_found_and_that_hold_now(coarse_bowl, fixed):
     """Judged in full, a second rewrite included; the feed cap below --min-rpm is refused
     naming both options."""
     case = FIXED[fixed][1]
     verdict = check(case, *(coarse_bowl if case.mesh else (None, None)))
+    if fixed in LEFT_WHOLE:  # every cut keeps its S and F: nothing planned, exit 5, no file
+        assert verdict is None
     if fixed == "feed cap below min-rpm":
         assert verdict is None
         with tempfile.TemporaryDirectory(prefix="judged") as folder:
@@ -681,7 +688,7 @@ def test_the_cases_it_found_and_that_hold_now(coarse_bowl, fixed):
                                         "--max-feed 600 mm/min over fz 0.1 mm x 2 teeth is "
                                         "3000 RPM, below --min-rpm 4800: "), result.stderr
         assert "raise --max-feed to at least 960 mm/min" in result.stderr
-    else:
+    elif fixed not in LEFT_WHOLE:
         assert verdict is not None and verdict.ok
 
 
@@ -785,3 +792,35 @@ def test_an_operation_no_spindle_speed_can_hold_is_left_and_the_others_planned(t
     first = out.read_text().splitlines()
     at = first.index("T1 M6")
     assert first[at:at + lines.index("T2 M6") - 3] == lines[3:lines.index("T2 M6")]
+
+
+def test_an_operation_whose_every_cut_is_kept_is_not_called_planned(tmp_path):
+    """--fz-band 0.1 and fz 0.02 on the bowl strip: every cut's F is too low for F words
+    of 1 mm/min to hold the band, so every cut keeps its S and F.  The operation was
+    reported planned (0 blocks, a stamp claiming the new vc); it is left, with why, and a
+    program of it alone has nothing to plan (exit 5, no file)."""
+    case = Case("bowl2", BOWL2, 1393.0, 279.0, 16.0,
+                {**SPINDLE, "--fz-band": "0.1", "--vc": "70", "--fz": "0.02"})
+    program = tmp_path / "prog.nc"
+    program.write_bytes(case.text)
+    out = tmp_path / "out.nc"
+    result = invoke(case.args(program, None) + ["-o", str(out)])
+    assert result.exit_code == Exit.PLANNING and not out.exists()
+    assert result.stderr.startswith(
+        f"{program}: nothing to plan: T4 (lines 1-131): every cut's feed is too low for the "
+        "resolution of the program's F words to hold fz within its band"), result.stderr
+
+
+def test_the_links_before_a_kept_block_carry_its_s_for_the_plan_too():
+    """Links (planned, not the operation's own cuts) right before a block kept as
+    programmed are written with that block's S (opplan._back_at_fixed); the plan fixes
+    them at it too, so the spindle it tracks is the one those words give."""
+    from ncopt.planning.opplan import _tie_links
+
+    planned = np.array([True, True, True, False, True, True])
+    mine = np.array([True, False, False, False, True, False])
+    running = np.ones(6, dtype=bool)
+    fixed = np.array([0.0, 0.0, 0.0, 2000.0, 0.0, 0.0])
+    out = _tie_links(planned, mine, running, fixed)
+    assert out.tolist() == [True, False, False, False, True, True]
+    assert fixed.tolist() == [0.0, 2000.0, 2000.0, 2000.0, 0.0, 0.0]

@@ -57,6 +57,11 @@ class Work:
     fits: dict[int, MeshFit | None] | None = None
 
 
+#: why an operation is left whose every cut keeps its S and F (opplan: F words too coarse)
+KEPT_WHOLE = ("every cut's feed is too low for the resolution of the program's F words to "
+              "hold fz within its band (write F with more decimals, or widen --fz-band)")
+
+
 def plan_program(prog: Program, tp: Toolpath, idx: schedule.BlockIndex, job,
                  mesh_index) -> Work:
     """Operations, their scope and their plans; NothingToPlan where none is planned."""
@@ -81,11 +86,16 @@ def plan_program(prog: Program, tp: Toolpath, idx: schedule.BlockIndex, job,
             check_fit(fits[op.tool], op.tool, job.contact_tol_mm, prog.path)
         cut, source = judged.cuts[k]
         lines = op_lines(judged.stamps, op)
-        plans.append(replace(
-            plan_operation(k, op, views[key], cut, source, tp, idx, point_op, scope, cmd,
-                           job.machine, job.options, prog.path,
-                           _intent(judged.stamps, op.tool, lines)),
-            lines=lines, ap_mm=method.ap_mm if method.name == "material" else float("nan")))
+        before = cmd.copy()
+        plan = plan_operation(k, op, views[key], cut, source, tp, idx, point_op, scope, cmd,
+                              job.machine, job.options, prog.path,
+                              _intent(judged.stamps, op.tool, lines))
+        if not (plan.blocks.cutting & plan.blocks.planned).any():  # every cut kept
+            cmd[:] = before
+            ops[k] = replace(op, planned=False, reason=KEPT_WHOLE)
+            continue
+        plans.append(replace(plan, lines=lines, ap_mm=method.ap_mm
+                             if method.name == "material" else float("nan")))
     if not plans:
         exc = NothingToPlan(nothing_why(ops, choices, tp), prog.path)
         exc.operations = tuple(ops)  # for reports: every operation and why it is left
