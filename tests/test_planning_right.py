@@ -219,3 +219,23 @@ def test_a_lowest_machine_speed_above_what_the_cut_needs_is_named():
     # the full diameter at vc 70 m/min needs 1393 RPM: 2000 RPM is 43.6 % above it at most
     assert 0.0 < worst <= 100.0 * (2000.0 / (70.0198 * 1000 / (np.pi * 16)) - 1) + 0.1
     assert re.match(r"bowl\.mpf:\d+: T4 \(T4\): \d+ cutting blocks \(lines \d+", warning)
+
+
+def test_replanning_for_a_faster_machine_gives_plunges_their_feed_back():
+    """Planned first for a 5000 RPM machine (S below the program's S15000: the plunges'
+    F slowed with it, F2000), then the output for a 15000 RPM one: the plunges get back
+    the F that planning the original for it gives (they kept F2000 where it gives F2546),
+    and every S and F in force is the same."""
+    from ncopt.planning.job import job_from_values
+    from programs import surface
+
+    text = surface("saddle", 6, lifts=True, s_rpm=15000, f_mm_min=6000.0).decode()
+    job = lambda rpm: job_from_values(diameter=6, teeth=2, accel=227, max_rpm=rpm,  # noqa: E731
+                                      vc=120, fz=0.05)
+    slow = rewrite_text(text, job(5000), "s.nc").text
+    again = rewrite_text(slow, job(15000), "s.nc").text
+    direct = rewrite_text(text, job(15000), "s.nc").text
+    a, b = interpret(parse_text(again)), interpret(parse_text(direct))
+    assert np.array_equal(a.spindle_rpm, b.spindle_rpm)
+    assert np.array_equal(a.feed_mm_min, b.feed_mm_min, equal_nan=True)
+    assert rewrite_text(again, job(15000), "s.nc").text == again

@@ -146,9 +146,12 @@ def _plan_window(k: int, op: Operation, view: ToolView, cut: CuttingData, source
                                emitted.s_high_rpm[:n], emitted.close_s_words)
     planned = blocks.planned
     reduced = w.mine & planned & (roles.off_feed | roles.plunge | ~blocks.cutting)
+    # an ncopt output: its F words may have been slowed with S below S0 (F0 S/S0 then)
+    up_to = 1.0 if intent is None else np.maximum(1.0, roles.s0 / np.where(
+        roles.s_ref > 0, roles.s_ref, np.inf))
     feeds = lambda s_low, f_mm: _op_feeds(  # noqa: E731
         s_low, f_mm[:n], roles.feed, roles.s_ref, reduced, blocks.cutting & w.mine & planned,
-        roles.plunge, machine.max_feed_mm_min, opts.fz_tolerance)
+        roles.plunge, machine.max_feed_mm_min, opts.fz_tolerance, up_to)
     f = feeds(emitted.s_low_rpm, f_mm)
     other = _other_mode_time(other_plan, with_tail, n, feeds, opts)
     return OpPlan(k, op.tool, view.cutter, cut, source, (w.lo, w.end), blocks, s_cmd, f,
@@ -333,19 +336,22 @@ def _commands(emitted: schedule.Emitted, blocks: schedule.Blocks, mine: np.ndarr
 
 
 def _op_feeds(s_low, f_mm, feed, s_ref, reduced, cutting, plunge, max_feed,
-              tol: float = 0.0) -> np.ndarray:
+              tol: float = 0.0, up_to=1.0) -> np.ndarray:
     """F per block (mm/min; NaN: the program's own stays): the planner's on the cuts at
     the cutting feed; elsewhere fz as the program has it at most.  A plunge's F is never
     raised (the tip's centre does not cut: a D16 ball plunging at 3 m/min because S rose
     tenfold breaks); F in the air stays the program's (the planner counts on its time
     there, and no tooth cuts); a ramp or lead-in along the surface follows S.  Where that F is within half
     the fz band ``tol`` of the program's own, the program's F stays as it is written
-    (``F333.33`` is not turned into ``F333.`` for a spindle 0.2 % slower)."""
+    (``F333.33`` is not turned into ``F333.`` for a spindle 0.2 % slower).  ``up_to``: how
+    far a plunge's F may rise over the F written (1; in an ncopt output, back to the
+    program's own: a plunge an earlier plan slowed with S runs at the program's own feed
+    per tooth again where S is back up)."""
     ratio = s_low / np.where(s_ref > 0, s_ref, np.nan)
     # in the air F is the program's: the tool cuts nothing there, and the plan took the
     # block's time at that F (a lower F would make a second rewrite plan another time)
     scaled = feed * np.where(cutting & ~plunge, ratio,
-                             np.where(cutting, np.minimum(ratio, 1.0), 1.0))
+                             np.where(cutting, np.minimum(ratio, up_to), 1.0))
     f = np.where(reduced, np.minimum(scaled, max_feed), f_mm)
     with np.errstate(invalid="ignore", divide="ignore"):
         close = reduced & (np.abs(f / feed - 1.0) <= 0.5 * tol) & (feed <= max_feed)
