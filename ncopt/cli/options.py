@@ -179,7 +179,7 @@ FOR_PLANNING = (CUTTER_NAME, DIAMETER, CORNER_RADIUS, SHAPE, TEETH, TOOL_POINT,
                 MESH, STOCK, METHOD, AP, ALLOWANCE_ALONG,
                 TOOL, OPERATIONS, PLANNER, MIN_STEP)
 #: simulate and report: the program replayed as written, with the cutter, targets and machine
-FOR_REPLAY = (CUTTER_NAME, DIAMETER, CORNER_RADIUS, TEETH, TOOL_POINT, MATERIAL, VC, FZ,
+FOR_REPLAY = (CUTTER_NAME, DIAMETER, CORNER_RADIUS, SHAPE, TEETH, TOOL_POINT, MATERIAL, VC, FZ,
               MACHINE_NAME, TOOLS_FILE, ACCEL, MAX_RPM, MIN_RPM, MAX_FEED, RAPID, KINEMATICS,
               DIALECT, DECIMAL_POINT, MESH, TOOL)
 #: inspect: what ncopt reads of a program, with no spindle
