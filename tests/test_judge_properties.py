@@ -32,6 +32,7 @@ from ncopt.motion.interp import interpret
 from ncopt.runtime.errors import NothingToPlan
 from ncopt.model import Cutter, Machine, Motion
 from ncopt.planning.intent import PLAUSIBLE_F_MM_MIN, PLAUSIBLE_FZ_MM, PLAUSIBLE_S_RPM
+from ncopt.planning.plans import KEPT_WHOLE
 
 from judge import RS274, canon
 
@@ -268,13 +269,17 @@ def test_rs274_agrees_on_programs_found_before(text):
 def judge_rewrite(text: str) -> None:
     """Rewrite ``text`` mesh-free; rs274 sees the same motion, and S/F as planned.  A
     program with no cut to plan (its feed moves have no length, or run with the spindle
-    off) is written nowhere: nothing to judge but that it has no such cut."""
+    off) is written nowhere: nothing to judge but that it has no such cut (or that every
+    cut keeps its S and F, its F words too coarse for the band)."""
     try:
         result = rewrite_text(text, JOB, "gen.ngc")
     except NothingToPlan as exc:
         tp = interpret(parse_text(text, "gen.ngc"))
         feed = np.isin(tp.motion, [Motion.LINEAR, Motion.ARC_CW, Motion.ARC_CCW])
         cutting = feed & tp.known & tp.spindle_on & (tp.seg_len_mm > 1e-9)
+        if any(op.reason == KEPT_WHOLE for op in exc.operations):
+            # every cut keeps its S and F (F words too coarse for the band there): left
+            return
         if any(op.reason.startswith("implausible cutting data") for op in exc.operations):
             # the program's own S and F are a unit or parameter slip ncopt must not scale
             f, s = tp.feed_mm_min[cutting], tp.spindle_rpm[cutting]

@@ -90,7 +90,8 @@ def plan_program(prog: Program, tp: Toolpath, idx: schedule.BlockIndex, job,
         plan = plan_operation(k, op, views[key], cut, source, tp, idx, point_op, scope, cmd,
                               job.machine, job.options, prog.path,
                               _intent(judged.stamps, op.tool, lines))
-        if not (plan.blocks.cutting & plan.blocks.planned).any():  # every cut kept
+        kept = plan.coarse_lines is not None and plan.coarse_lines.size > 0
+        if kept and not (plan.blocks.cutting & plan.blocks.planned).any():  # every cut kept
             cmd[:] = before
             ops[k] = replace(op, planned=False, reason=KEPT_WHOLE)
             continue
