@@ -61,3 +61,19 @@ def line_state(prog: Program, lines: LineTable, modal: Modal, executed: np.ndarr
                      s_rpm=modal.spindle_rpm, f_prog=modal.feed, s_known=s_known,
                      f_known=f_known, block_delete=block_delete,
                      canned=np.isin(modal.motion, list(CANNED)) & executed, call=call)
+
+
+def spindle_starts_through(prog: Program) -> np.ndarray:
+    """(n_lines + 1,) int: how many times an M3/M4 has started the stopped spindle (after
+    M2, M5 or M30, or at the top) up to each line; index 0 is before the first line, so a
+    point's count is ``out[line + 1]`` (point 0, line -1: 0).  The spindle check of the
+    rewrite and the simulator's move table count the starts alike."""
+    m = prog.word_letter == ord("M")
+    line, code = prog.word_line[m], prog.word_value[m]
+    state = np.full(prog.n_lines, np.nan)
+    state[line[np.isin(code, (2, 5, 30))]] = 0.0
+    state[line[np.isin(code, (3, 4))]] = 1.0
+    before = np.concatenate(([0.0], ffill(state, 0.0)[:-1]))
+    starts = np.zeros(prog.n_lines + 1, dtype=np.int64)
+    starts[1:] = np.cumsum((state == 1.0) & (before == 0.0))
+    return starts

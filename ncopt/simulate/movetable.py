@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ncopt.model import Job, Motion, Program, Toolpath
-from ncopt.motion.modal import ffill
+from ncopt.motion.linestate import spindle_starts_through
 
 __all__ = ["FEED_MOTIONS", "Moves", "feed_tools", "move_table"]
 
@@ -63,14 +63,7 @@ def move_table(prog: Program, tp: Toolpath, job: Job, tool_mask: np.ndarray) -> 
 
 def _spindle_starts(prog: Program, tp: Toolpath) -> np.ndarray:
     """(nm,) bool: an M3/M4 starts the stopped spindle at or before this move (since the last)."""
-    m = prog.word_letter == ord("M")
-    line, code = prog.word_line[m], prog.word_value[m]
-    state = np.full(prog.n_lines, np.nan)
-    state[line[np.isin(code, (2, 5, 30))]] = 0.0
-    state[line[np.isin(code, (3, 4))]] = 1.0
-    before = np.concatenate(([0.0], ffill(state, 0.0)[:-1]))
-    starts = np.zeros(prog.n_lines + 1, dtype=np.int64)
-    starts[1:] = np.cumsum((state == 1.0) & (before == 0.0))
+    starts = spindle_starts_through(prog)
     move_line = tp.line.astype(np.int64)  # point 0 has line -1: count from the top
     return starts[move_line[1:] + 1] > starts[move_line[:-1] + 1]
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from ncopt.contacts.locate import below_top_mm
 from ncopt.model import Job, Machine, Motion, Program, Toolpath
-from ncopt.motion.modal import ffill
+from ncopt.motion.linestate import spindle_starts_through
 from ncopt.planning.opplan import OpPlan
 from ncopt.planning.plans import Work
 from ncopt.planning.schedule import BlockIndex
@@ -154,14 +154,7 @@ def real_top_rpm(prog: Program, tp: Toolpath, idx: BlockIndex, plans: Sequence[O
 def _spindle_starts(prog: Program, tp: Toolpath, fp: np.ndarray) -> np.ndarray:
     """(nb,) bool: an M3/M4 starts the stopped spindle (after M2, M5 or M30) since the
     move before the block's first, as ``ncopt.simulate.movetable`` finds the starts."""
-    m = prog.word_letter == ord("M")
-    line, code = prog.word_line[m], prog.word_value[m]
-    state = np.full(prog.n_lines, np.nan)
-    state[line[np.isin(code, (2, 5, 30))]] = 0.0
-    state[line[np.isin(code, (3, 4))]] = 1.0
-    before = np.concatenate(([0.0], ffill(state, 0.0)[:-1]))
-    starts = np.zeros(prog.n_lines + 1, dtype=np.int64)
-    starts[1:] = np.cumsum((state == 1.0) & (before == 0.0))
+    starts = spindle_starts_through(prog)
     point_line = tp.line.astype(np.int64) + 1  # point 0 has line -1: count from the top
     return starts[point_line[fp]] > starts[point_line[fp - 1]]
 
