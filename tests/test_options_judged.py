@@ -811,16 +811,14 @@ def test_an_operation_whose_every_cut_is_kept_is_not_called_planned(tmp_path):
         "resolution of the program's F words to hold fz within its band"), result.stderr
 
 
-def test_the_links_before_a_kept_block_carry_its_s_for_the_plan_too():
+def test_the_links_before_a_kept_block_keep_its_s_for_the_plan_too():
     """Links (planned, not the operation's own cuts) right before a block kept as
-    programmed are written with that block's S (opplan._back_at_fixed); the plan fixes
-    them at it too, so the spindle it tracks is the one those words give."""
+    programmed keep the program's S, for the plan too, so the spindle it tracks is the one
+    the output runs."""
     from ncopt.planning.opplan import _tie_links
 
     planned = np.array([True, True, True, False, True, True])
     mine = np.array([True, False, False, False, True, False])
     running = np.ones(6, dtype=bool)
-    fixed = np.array([0.0, 0.0, 0.0, 2000.0, 0.0, 0.0])
-    out = _tie_links(planned, mine, running, fixed)
-    assert out.tolist() == [True, False, False, False, True, True]
-    assert fixed.tolist() == [0.0, 2000.0, 2000.0, 2000.0, 0.0, 0.0]
+    assert _tie_links(planned, mine, running).tolist() == [True, False, False, False, True,
+                                                           True]

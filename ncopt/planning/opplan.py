@@ -224,8 +224,8 @@ def _window_blocks(base: schedule.Blocks, win: slice, planned: np.ndarray, cut: 
     # a program's S above the machine's, on a block ncopt leaves: its spindle turns at most
     # at the machine's (the planned blocks keep their S as written: an ncopt output's are
     # replayed on the spindle they were planned for, ncopt.planning.intent)
+    planned = _tie_links(planned, mine, base.running[win])
     fixed_rpm = np.where(planned, cmd_rpm[win], np.minimum(cmd_rpm[win], max_rpm))
-    planned = _tie_links(planned, mine, base.running[win], fixed_rpm)
     cutting = base.cutting[win] & planned
     return schedule.Blocks(
         length_mm=base.length_mm[win], req_rpm=base.req_rpm[win] * cut.vc_m_min,
@@ -234,20 +234,17 @@ def _window_blocks(base: schedule.Blocks, win: slice, planned: np.ndarray, cut: 
         running=base.running[win], k_limited=cutting)
 
 
-def _tie_links(planned: np.ndarray, mine: np.ndarray, running: np.ndarray,
-               fixed_rpm: np.ndarray) -> np.ndarray:
-    """The link moves just before a block that keeps the program's S carry that S
-    (:func:`_back_at_fixed` writes it there): fixed at it for the plan too, in place in
-    ``fixed_rpm``, so that the spindle the plan tracks is the one those words give (a
-    spindle start planned at S5402 and written S2000 put F on the cuts after for 3800 RPM:
-    fz +97 %).  Returns the blocks still planned."""
+def _tie_links(planned: np.ndarray, mine: np.ndarray, running: np.ndarray) -> np.ndarray:
+    """The blocks still planned: the link moves just before a block that keeps the
+    program's S keep it too, so that the spindle the plan tracks is the one the output
+    runs (planned, then written back to the program's S, they left F on the cuts after a
+    spindle start planned at S5402 and run at S2000 for 3800 RPM: fz +97 %)."""
     out = planned.copy()
     link = planned & ~mine
     for i in np.flatnonzero(~planned[1:] & running[1:] & planned[:-1]).tolist():
-        j = i  # block i + 1 keeps its S; the links before it carry it
+        j = i  # block i + 1 keeps its S; so do the links before it
         while j >= 0 and link[j]:
             out[j] = False
-            fixed_rpm[j] = fixed_rpm[i + 1]
             j -= 1
     return out
 
