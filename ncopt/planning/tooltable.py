@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ncopt.model import MM_PER_INCH, Cutter, LineKind, Program
+from ncopt.motion.modal import sorted_unique
 from ncopt.reading.stampline import STAMP_BODY
 from ncopt.planning.toolcomments import (BALL, BULL, BULL_NO_RADIUS, FLAT, OTHER, UNKNOWN, Fact,
                            may_describe_a_tool, read_comment, shape)
@@ -246,7 +247,7 @@ def _comment_lines(prog: Program) -> list[tuple[int, list[str]]]:
             hits.append(at)
             at = text.find(body, at + 1)
     hit_lines = np.searchsorted(prog.line_start, sorted(hits), side="right") - 1
-    hit_lines = hit_lines[np.concatenate(([True], np.diff(hit_lines) != 0))]
+    hit_lines = sorted_unique(hit_lines)
     for line in hit_lines[hit_lines < prog.n_lines].tolist():
         lo, hi = int(prog.line_start[line]), int(prog.line_start[line + 1])
         for m in _COMMENT_IN_TEXT.finditer(text, lo, hi):
@@ -268,16 +269,22 @@ def _comment_lines(prog: Program) -> list[tuple[int, list[str]]]:
     return out
 
 
+def lines_with_comment_marks(prog: Program) -> np.ndarray:
+    """The 0-based lines holding a ``(`` or ``;`` (where a comment may be), sorted: one
+    pass over the text's bytes, for the readers of tool descriptions and operation names."""
+    raw = np.frombuffer(prog.text.encode("latin-1"), dtype=np.uint8)
+    marks = np.flatnonzero((raw == ord("(")) | (raw == ord(";")))
+    lines = sorted_unique(np.searchsorted(prog.line_start, marks, side="right") - 1)
+    return lines[lines < prog.n_lines]
+
+
 def _comment_spans(prog: Program) -> list[tuple[int, int]]:
     """(start, end) offsets of the runs of consecutive lines holding a '(' or ';'.
 
     No comment match crosses a line end, so the matches within these spans are the
     matches in the whole text; a finishing program has comments on a few lines only,
     and the regular expression then scans those, not every byte (1M lines: 0.15 s)."""
-    raw = np.frombuffer(prog.text.encode("latin-1"), dtype=np.uint8)
-    at = np.flatnonzero((raw == ord("(")) | (raw == ord(";")))
-    lines = np.searchsorted(prog.line_start, at, side="right") - 1  # sorted, as ``at`` is
-    lines = lines[np.concatenate(([True], np.diff(lines) != 0))] if lines.size else lines
+    lines = lines_with_comment_marks(prog)
     if lines.size == 0:
         return []
     first = lines[np.concatenate(([True], np.diff(lines) > 1))]
