@@ -111,6 +111,9 @@ def mark_comments(cls: np.ndarray, raw: np.ndarray, line_start: np.ndarray,
     np.add.at(depth, starts, 1)
     np.add.at(depth, ends, -1)
     inside = np.cumsum(depth[:-1], dtype=np.int32) > 0
+    # a carriage return inside a comment is no comment character in any grammar (COMMENT,
+    # EOL_COMMENT stop at \r): it keeps its class, and Lark reads (and refuses) the line
+    inside &= raw != 13
     cls[inside] = SPACE
     cls[starts] = SEP
 
