@@ -33,9 +33,10 @@ Intent = tuple[float, float, tuple[float, float] | None]
 
 
 def feed_intent(blocks, feed, s_prog, mine, machine, cut, cutter, opts, intent: Intent | None,
-                match=FEED_MATCH):
+                match=FEED_MATCH, inverse_time: np.ndarray | None = None):
     """Which blocks of the operation run at another feed than its cutting feed (read
-    from its ``mine`` blocks: plunges and retracts aside).
+    from its ``mine`` blocks: plunges and retracts aside).  ``inverse_time``: per block,
+    whether it runs in G93 (None: no G93 in the program).
 
     Returns (s_ref, off_feed, F0, S0): per block the spindle speed the program's F
     refers to, and whether the block is off the cutting feed; the cutting feed F0
@@ -66,8 +67,13 @@ def feed_intent(blocks, feed, s_prog, mine, machine, cut, cutter, opts, intent: 
                               machine.max_feed_mm_min, opts.fz_policy)
     expected = np.floor(expected / q + 1e-6) * q
     # a cut at the stamped F0 itself is one ncopt kept as programmed (its F words too
-    # coarse for the band there): on the cutting feed, as it was the first time
+    # coarse for the band there): on the cutting feed, as it was the first time.  A G93
+    # block's feed is its length over its time word: one near F0 by chance (within the
+    # resolution of the longest block's word) was kept only where its S is the program's
+    # own S0 too (impeller-7bl-xyzac.ngc: F476 S1886 read as kept, F1456 on a second run)
     at_f0 = np.abs(feed - f0) <= 1.5 * q
+    if inverse_time is not None:
+        at_f0 &= ~inverse_time | (np.abs(s_prog - s0) <= 0.5)
     off = np.where(blocks.cutting, (np.abs(feed - expected) > 1.5 * q) & ~at_f0, ~at_f0)
     return s_ref, off, f0, s0
 

@@ -275,8 +275,9 @@ def _feed_roles(tp: Toolpath, fp: np.ndarray, blocks: schedule.Blocks, mine: np.
     plunge, vertical = _plunges(tp, fp)
     match = FEED_MATCH if tp.inverse_time is None else np.where(
         tp.inverse_time[fp], FEED_MATCH_G93 * np.abs(feed), FEED_MATCH)
-    s_ref, off_feed, f0, s0 = feed_intent(blocks, feed, tp.spindle_rpm[fp], mine & ~vertical,
-                                          machine, cut, cutter, opts, intent, match)
+    s_ref, off_feed, f0, s0 = feed_intent(
+        blocks, feed, tp.spindle_rpm[fp], mine & ~vertical, machine, cut, cutter, opts, intent,
+        match, None if tp.inverse_time is None else tp.inverse_time[fp])
     if intent is not None:
         # a plunge still at the operation's own feed kept its F while ncopt raised S: its
         # feed per revolution is the one the program gave it at its own S0, as in the
