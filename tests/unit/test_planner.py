@@ -365,3 +365,44 @@ def test_a_command_under_a_spindle_still_falling_keeps_the_fz_band():
     assert em.s_high_rpm[2] == pytest.approx(522.1587531)  # the spindle entering the cut
     assert em.s_high_rpm[2] / em.s_low_rpm[2] <= ratio
     assert em.s_cmd_rpm[2] == 458.0 <= profile.s_rpm[2] + 1.0
+
+
+def test_a_fall_toward_a_block_the_program_keeps_lower_stays_within_the_profile():
+    """A chain of falls held by a narrow fz band (1.5 %) toward a block ncopt leaves at the
+    program's S491, far below the lowest requirement (7506 RPM): each fall's integer S word
+    is rounded up by < 1 RPM, and with a reserve for that kept at the lowest requirement the
+    chain ran 1.09 RPM over the profile at 552.9 RPM (S554).  The reserve is kept at the
+    lowest speed a cut is planned at: every cut's S word within 1 RPM of the profile."""
+    b = schedule.Blocks(
+        length_mm=np.array([
+            3.08824797, 4.82062823, 2.28603168, 3.11478104, 0.93575436, 4.33850422,
+            0.46900177, 2.23610492, 3.48590527, 1.34890919, 1.51649621, 0.01, 2.91991108,
+            4.78744289, 2.76280662, 3.82795001, 3.72884456, 0.27826807]),
+        req_rpm=np.array([
+            6598.39840027, np.inf, np.inf, np.inf, 39215.02664829, np.inf, 10000., 39999.,
+            np.inf, 32068.25640523, np.inf, np.inf, np.inf, 7506.26270076, 7917.92699782,
+            np.inf, np.inf, 30538.46480529]),
+        cutting=np.array([
+            False, False, True, False, True, True, True, True, True, True, True, False,
+            True, True, False, False, False, True]),
+        planned=np.array([
+            True, True, True, True, True, True, True, True, True, True, True, False, True,
+            True, False, False, True, True]),
+        time_s=np.array([
+            1.00000000e-03, 1.00000000e-03, 1.00000000e-03, 1.00000000e-03, 9.35754356e-01,
+            1.00000000e-03, 4.69001771e-01, 1.00000000e-03, 1.00000000e-03, 1.34890919e+00,
+            1.51649621e+00, 1.00000000e-02, 1.00000000e-03, 1.00000000e-03, 1.00000000e-03,
+            1.00000000e-03, 1.00000000e-03, 2.78268072e-01]),
+        fixed_rpm=np.full(18, 491.0))
+    machine = Machine(accel_rad_s2=654.9200274369349, max_rpm=11186.031144651603,
+                      min_rpm=490.0, max_feed_mm_min=20000.0)
+    cut = CuttingData(vc_m_min=100.0, fz_mm=0.0947859319428369)
+    opts = PlanOptions(min_rpm_step=2.0, fz_tolerance=0.01496852135245836)
+    profile = schedule.lookahead(b, machine, cut, 4, opts)
+    incs = schedule.increments(b, machine, profile.k_rpm2_per_mm)
+    s_lo, s_hi = schedule.speed_limits(machine, cut, 4)
+    cuts = b.cutting & b.planned
+    ratio = schedule.max_speed_ratio(opts, cut, 4, float(profile.cap_rpm[cuts].min()))
+    em = schedule.emit_rpm(profile, b, incs, opts, s_lo, ratio, s_hi=s_hi)
+    assert np.all(em.s_cmd_rpm[cuts] <= profile.s_rpm[cuts] + 1.0)
+    assert em.s_cmd_rpm[10] < 554.0  # the word of the old excess
