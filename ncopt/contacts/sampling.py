@@ -163,8 +163,8 @@ def _around(new: np.ndarray, n_intervals: int) -> np.ndarray:
 
 
 def _unique(a: np.ndarray) -> np.ndarray:
-    """``np.unique(a)`` of integers by a sort (numpy 2's hashed unique took ~10 times as
-    long on these nearly sorted indices: 0.09 s a level at 60k of them)."""
+    """``np.unique(a)`` of integers by a sort (numpy 2.4's hashed unique took 10 times as
+    long on such nearly sorted indices: 0.34 against 0.03 s for 240k)."""
     a = np.sort(a)
     keep = np.empty(a.size, dtype=bool)
     keep[:1] = True
