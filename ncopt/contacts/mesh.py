@@ -79,8 +79,14 @@ def mesh_from_triangles(tri_mm: np.ndarray, merge_tol_mm: float = 1e-6) -> Mesh:
     # An STL repeats each point ~6 times, bit for bit: the rounding and the sort by
     # grid point run on the distinct points only.
     order, run, first = _same_bits(pts)
-    by_file = np.argsort(first)  # distinct points in file order: the stable sort below
-    first = first[by_file]       # then keeps the first corner of each grid point first
+    # distinct points in file order (the stable sort below then keeps the first corner of
+    # each grid point first): marked in the file's rows, not sorted (no two runs share
+    # their first row); by_file[r]: the place of run r's first row among them
+    is_first = np.zeros(pts.shape[0], dtype=bool)
+    is_first[first] = True
+    by_file = np.take(np.cumsum(is_first) - 1, first)
+    first = np.flatnonzero(is_first)
+    del is_first
     key = np.empty((first.size, 3), dtype=np.int64)
     for c in range(3):
         key[:, c] = np.round(np.take(pts[:, c], first).astype(np.float64) / merge_tol_mm)
@@ -91,8 +97,7 @@ def mesh_from_triangles(tri_mm: np.ndarray, merge_tol_mm: float = 1e-6) -> Mesh:
     del key
     vertex = np.empty(len(by_key), dtype=np.int64)  # of each distinct point, in file order
     vertex[by_key] = np.cumsum(new) - 1
-    run_vertex = np.empty_like(vertex)
-    run_vertex[by_file] = vertex
+    run_vertex = np.take(vertex, by_file)
     del vertex, by_file
     F = np.empty(pts.shape[0], dtype=np.int64)
     F[order] = run_vertex[run]
@@ -114,8 +119,9 @@ def _same_bits(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     number); ``run[i]`` numbers the run of equal rows that ``order[i]`` is in,
     ``first[r]`` is the smallest row of run ``r``.  A run never holds two different
     rows; rows whose hashes collide may split a run in two (harmless to
-    :func:`mesh_from_triangles`, which merges by grid point afterwards).  The columns
-    are compared one by one (a gather of whole rows is 4x slower).
+    :func:`mesh_from_triangles`, which merges by grid point afterwards).  The rows are
+    gathered whole (numpy 2.4: 0.07 s for 3M, against 0.13 s column by column), then
+    compared column by column.
     """
     n = pts.shape[0]
     if n == 0:
@@ -136,30 +142,58 @@ def _same_bits(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     del h
     new = np.zeros(n, dtype=bool)
     new[0] = True
+    rows = np.take(words, order, axis=0)
     for c in range(words.shape[1]):
-        col = np.take(words[:, c], order)
+        col = rows[:, c]
         new[1:] |= col[1:] != col[:-1]
-    del col
+    del col, rows
     run = np.cumsum(new) - 1
     return order, run, np.minimum.reduceat(order, np.flatnonzero(new))
 
 
-def _stl_mode(path: Path):
-    """Binary or ASCII (numpy-stl's ``Mode``), checked against the file size (numpy-stl
-    is lenient)."""
-    from stl import Mode  # numpy-stl: imported when a mesh is read (~30 ms)
+# binary STL: an 80-byte header, a little-endian uint32 count, then 50 bytes a triangle
+_STL_HEADER_BYTES = 84
+_STL_RECORD = np.dtype([("normals", "<f4", (3,)), ("vectors", "<f4", (3, 3)),
+                        ("attr", "<u2", (1,))])  # numpy-stl's Mesh.dtype
+_STL_MAX_COUNT = 1e8  # numpy-stl refuses a count this large: such a file is left to it
+
+
+def _stl_mode(path: Path) -> str:
+    """``"binary"`` or ``"ascii"``, the binary layout checked against the file size
+    (numpy-stl is lenient)."""
     size = path.stat().st_size
     with path.open("rb") as fh:
-        head = fh.read(84)
-    count = int.from_bytes(head[80:84], "little") if len(head) == 84 else -1
-    if count >= 0 and size == 84 + 50 * count:
-        return Mode.BINARY
+        head = fh.read(_STL_HEADER_BYTES)
+    count = int.from_bytes(head[80:84], "little") if len(head) == _STL_HEADER_BYTES else -1
+    if count >= 0 and size == _STL_HEADER_BYTES + _STL_RECORD.itemsize * count:
+        return "binary"
     if head.lstrip().lower().startswith(b"solid"):
-        return Mode.ASCII
-    if size < 84:
+        return "ascii"
+    if size < _STL_HEADER_BYTES:
         raise MeshError("file too short for an STL; export the part as STL", path=str(path))
     raise MeshError(f"binary STL header says {count} triangles but the file has {size} "
                     "bytes (truncated or not an STL); export the part again", path=str(path))
+
+
+def _stl_triangles(path: Path, mode: str) -> np.ndarray:
+    """Corners ``(nf, 3, 3)`` float32 of every triangle (of every solid of an ASCII file).
+
+    A binary file whose size matches its count is one ``np.fromfile`` (what numpy-stl
+    does with it, without importing numpy-stl: ~30 ms, in the thread that loads the mesh
+    while the program is parsed); ASCII files and refused counts go through numpy-stl.
+    """
+    if mode == "binary":
+        with path.open("rb") as fh:
+            count = int.from_bytes(fh.read(_STL_HEADER_BYTES)[80:], "little")
+        if count < _STL_MAX_COUNT:
+            return np.fromfile(path, dtype=_STL_RECORD, count=count,
+                               offset=_STL_HEADER_BYTES)["vectors"]
+    from stl import Mode  # numpy-stl: imported when a mesh needs it (~30 ms)
+    from stl import mesh as stl_mesh
+    parts = list(stl_mesh.Mesh.from_multi_file(
+        str(path), calculate_normals=False, mode=Mode.BINARY if mode == "binary" else Mode.ASCII))
+    return (parts[0].vectors if len(parts) == 1 else
+            np.concatenate([m.vectors for m in parts]) if parts else np.zeros((0, 3, 3)))
 
 
 def load_stl(path: str | os.PathLike, merge_tol_mm: float = 1e-6) -> Mesh:
@@ -186,14 +220,11 @@ def load_stl(path: str | os.PathLike, merge_tol_mm: float = 1e-6) -> Mesh:
     if not p.is_file():
         raise MeshError("no such file; check the mesh path", path=str(p))
     mode = _stl_mode(p)
-    from stl import mesh as stl_mesh  # numpy-stl: imported when a mesh is read (~30 ms)
     try:
-        parts = list(stl_mesh.Mesh.from_multi_file(str(p), calculate_normals=False, mode=mode))
+        tri = _stl_triangles(p, mode)
     except _STL_READ_ERRORS as exc:
         raise MeshError(f"not a readable STL file ({exc}); export the part again",
                         path=str(p)) from exc
-    tri = (parts[0].vectors if len(parts) == 1 else
-           np.concatenate([m.vectors for m in parts]) if parts else np.zeros((0, 3, 3)))
     if tri.shape[0] == 0:
         raise MeshError("the STL holds no triangles; export the part again", path=str(p))
     if not np.all(np.isfinite(tri)):
@@ -215,8 +246,12 @@ def spatial_order(points_mm: np.ndarray, cell_mm: float = 0.5) -> np.ndarray:
     """
     if points_mm.shape[0] == 0:
         return np.zeros(0, dtype=np.int64)
-    g = np.floor((points_mm - points_mm.min(axis=0)) / cell_mm)
-    g = np.nan_to_num(g, nan=0.0, posinf=0.0).astype(np.int64) & 0x1FFFFF
+    # a cell for every point, whatever its coordinates: a non-finite or huge one casts to
+    # some integer (on x86-64 the same for all: 0 after the mask), and the order only
+    # decides how fast the queries run (without np.nan_to_num: 0.09 -> 0.07 s at 1M)
+    with np.errstate(invalid="ignore"):
+        g = np.floor((points_mm - points_mm.min(axis=0)) / cell_mm).astype(np.int64)
+    g &= 0x1FFFFF
     code = np.zeros(points_mm.shape[0], dtype=np.int64)
     for axis in range(3):
         x = g[:, axis]

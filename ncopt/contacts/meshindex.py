@@ -91,12 +91,13 @@ class MeshIndex:
         self.feature_vertex = np.zeros(V.shape[0], dtype=bool)
         self.feature_vertex[F[self.feature_edge]] = True
         self.feature_vertex[np.roll(F, -1, axis=1)[self.feature_edge]] = True
-        cn = (self._corner_normals() if corner_normals is None else  # ours, or a copy
-              np.array(corner_normals, dtype=np.float64).reshape(-1, 3, 3))
-        # unit corner normals, the facet's where one is unusable: all corners as one
-        # contiguous (nf * 3, 3) array (corner by corner, strided: 2x slower)
-        unit_or(cn.reshape(-1, 3), self.face_normal, per=3)
-        self.corner_normal = cn
+        if corner_normals is None:
+            self.corner_normal = self._corner_normals()
+        else:  # a copy, made unit, the facet's where one is unusable: all corners as one
+            # contiguous (nf * 3, 3) array (corner by corner, strided: 2x slower)
+            cn = np.array(corner_normals, dtype=np.float64).reshape(-1, 3, 3)
+            unit_or(cn.reshape(-1, 3), self.face_normal, per=3)
+            self.corner_normal = cn
         # fcpw's BVH last: its build holds the GIL (0.5-0.7 s), which stops the parse
         # beside it; late, it overlaps less of it (dense 1M-block case, eight alternating
         # runs: parse + interpret + mesh 2.77 -> 2.68 s, median)
@@ -104,17 +105,28 @@ class MeshIndex:
         release_freed_memory(force=True)  # this thread's arena: the main thread cannot reuse it
 
     def _corner_normals(self) -> np.ndarray:
+        """Unit normals ``(nf, 3, 3)`` at the corners of each face, the facet's where one
+        is unusable (shorter than 0.5 or not finite before scaling: ``rows.unit_or``).
+
+        A corner away from sharp edges takes its vertex's normal: the vertex normals are
+        scaled once (nv rows) and then copied to their corners, not scaled corner by
+        corner (3 nf rows, ~6 times as many: the same divisions, so the same bits).
+        """
         import igl  # deferred until a mesh is indexed (module docstring)
         V, F = self.mesh.V, self.mesh.F
-        cn = np.take(igl.per_vertex_normals(V, F, igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_ANGLE),
-                     F, axis=0)
-        sharp = np.zeros(V.shape[0], dtype=bool)
-        sharp[F[self.feature_edge]] = True
-        sharp[np.roll(F, -1, axis=1)[self.feature_edge]] = True
-        at_sharp = sharp[F]
+        vn = igl.per_vertex_normals(V, F, igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_ANGLE)
+        unit_or(vn, np.full((1, 3), np.nan), per=len(vn))  # unusable rows: NaN (row 0)
+        cn = np.take(vn, F, axis=0)
+        del vn
+        lost = np.flatnonzero(np.isnan(cn[:, :, 0]).ravel())
+        if lost.size:
+            cn.reshape(-1, 3)[lost] = self.face_normal[lost // 3]
+        at_sharp = self.feature_vertex[F]
         near = np.flatnonzero(np.any(at_sharp, axis=1))
         if near.size:  # a corner averages the faces at its vertex: only those faces
-            split = igl.per_corner_normals(V, F[near], self.feature_angle_deg).reshape(-1, 3, 3)
+            split = igl.per_corner_normals(V, F[near], self.feature_angle_deg).reshape(-1, 3)
+            unit_or(split, self.face_normal[near], per=3)
+            split = split.reshape(-1, 3, 3)
             cn[near] = np.where(at_sharp[near][:, :, None], split, cn[near])
         return cn
 

@@ -341,13 +341,18 @@ def test_later_levels_judging_only_around_new_samples_split_the_same(wave, drawn
         assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
 
 
-@given(st.integers(0, 30), st.lists(st.integers(0, 30), max_size=80, unique=True),
-       st.sampled_from([(), (3,)]))
-def test_inserted_rows_land_as_numpy_insert_puts_them(n, at, tail):
+@given(st.integers(0, 200), st.lists(st.integers(0, 200), max_size=150),
+       st.sampled_from([(), (3,)]), st.booleans())
+def test_inserted_rows_land_as_numpy_insert_puts_them(n, at, tail, one_value):
+    # sorted indices, repeated ones too (points between the same two samples), a few (by
+    # slices) or many (by index), rows or one value for all
     a = np.arange(n * (3 if tail else 1), dtype=float).reshape(n, *tail)
     at = np.array(sorted(i for i in at if i <= n), dtype=np.int64)
-    rows = -1.0 - np.arange(at.size * (3 if tail else 1), dtype=float).reshape(at.size, *tail)
+    rows = (-1.0 if one_value else
+            -1.0 - np.arange(at.size * (3 if tail else 1), dtype=float).reshape(at.size, *tail))
     import ncopt.contacts.sampling as sampling
 
-    np.testing.assert_array_equal(sampling._insert_rows(a, at, rows),
-                                  np.insert(a, at, rows, axis=0))
+    got = sampling._Gaps(at, n).fill(a, rows)
+    want = np.insert(a, at, rows, axis=0)
+    assert got.dtype == want.dtype and got.shape == want.shape
+    np.testing.assert_array_equal(got, want)
