@@ -152,10 +152,7 @@ def _same_bits(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 # binary STL: an 80-byte header, a little-endian uint32 count, then 50 bytes a triangle
-_STL_HEADER_BYTES = 84
-_STL_RECORD = np.dtype([("normals", "<f4", (3,)), ("vectors", "<f4", (3, 3)),
-                        ("attr", "<u2", (1,))])  # numpy-stl's Mesh.dtype
-_STL_MAX_COUNT = 1e8  # numpy-stl refuses a count this large: such a file is left to it
+_STL_HEADER_BYTES, _STL_RECORD_BYTES = 84, 50
 
 
 def _stl_mode(path: Path) -> str:
@@ -165,7 +162,7 @@ def _stl_mode(path: Path) -> str:
     with path.open("rb") as fh:
         head = fh.read(_STL_HEADER_BYTES)
     count = int.from_bytes(head[80:84], "little") if len(head) == _STL_HEADER_BYTES else -1
-    if count >= 0 and size == _STL_HEADER_BYTES + _STL_RECORD.itemsize * count:
+    if count >= 0 and size == _STL_HEADER_BYTES + _STL_RECORD_BYTES * count:
         return "binary"
     if head.lstrip().lower().startswith(b"solid"):
         return "ascii"
@@ -176,19 +173,9 @@ def _stl_mode(path: Path) -> str:
 
 
 def _stl_triangles(path: Path, mode: str) -> np.ndarray:
-    """Corners ``(nf, 3, 3)`` float32 of every triangle (of every solid of an ASCII file).
-
-    A binary file whose size matches its count is one ``np.fromfile`` (what numpy-stl
-    does with it, without importing numpy-stl: ~30 ms, in the thread that loads the mesh
-    while the program is parsed); ASCII files and refused counts go through numpy-stl.
-    """
-    if mode == "binary":
-        with path.open("rb") as fh:
-            count = int.from_bytes(fh.read(_STL_HEADER_BYTES)[80:], "little")
-        if count < _STL_MAX_COUNT:
-            return np.fromfile(path, dtype=_STL_RECORD, count=count,
-                               offset=_STL_HEADER_BYTES)["vectors"]
-    from stl import Mode  # numpy-stl: imported when a mesh needs it (~30 ms)
+    """Corners ``(nf, 3, 3)`` float32 of every triangle (of every solid of an ASCII file),
+    read by numpy-stl (imported when a mesh is read, ~30 ms)."""
+    from stl import Mode
     from stl import mesh as stl_mesh
     parts = list(stl_mesh.Mesh.from_multi_file(
         str(path), calculate_normals=False, mode=Mode.BINARY if mode == "binary" else Mode.ASCII))
