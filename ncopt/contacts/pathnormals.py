@@ -30,14 +30,15 @@ import numpy as np
 from ncopt.motion.modal import row_norms
 from ncopt.contacts.curvedfit import curved_normals
 from ncopt.contacts.kdtree import cKDTree
+# the confidences, the pass ratio and across are used from here by the other stages
+from ncopt.contacts.pathfit import (CONFIDENT, NO_CROSS, ONE_SIDED, OTHER_PASS_RATIO, across,
+                                    by_rank, fit_cross, other_pass)
 from ncopt.model import Contacts, Cutter
 from ncopt.runtime.threads import available_cpus, map_in_threads
 from ncopt.contacts.cutters import r_eff_mm
 
 K_NEIGHBOURS = 12  # enough for 4-5 points per pass on each side at CAM-typical spacings
-CHUNK = 16384  # points a chunk: its (chunk, k, 3) temporaries stay in a core's cache
-OTHER_PASS_RATIO = 3.0  # path distance > ratio * straight distance: another pass
-CONFIDENT, ONE_SIDED, NO_CROSS = 2, 1, 0
+CHUNK = 16384  # points a chunk: its (k, chunk) temporaries stay in a core's cache
 # A one-sided fit on a curved surface tilts the normal by about half the stepover
 # times the curvature; planning takes the normal this much steeper (a larger
 # R_eff, a lower required speed), so vc stays under its target there.
@@ -95,24 +96,25 @@ def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarra
         return PathNormals(normal, confidence, float("nan"))
     pts, s = np.take(centers_mm, idx, axis=0), np.take(path_mm, idx)
     threads = available_cpus() if workers == -1 else workers
-    # the tree's build releases the GIL: the tangents are computed meanwhile
-    tree, tangent = map_in_threads(lambda job: job(), (lambda: cKDTree(pts),
-                                                       lambda: _tangents(pts, s)), threads)
+    # the tree's build releases the GIL: the tangents and the coordinates are found meanwhile
+    tree, (tangent, xyz) = map_in_threads(
+        lambda job: job(), (lambda: cKDTree(pts), lambda: (_tangents(pts, s), by_rank(pts))),
+        threads)
     if end_order == 2:
         tangent = second_order_ends(pts, s, tangent)
     kk = min(2 * k + 1 if balanced else k + 1, idx.size)
 
-    def chunk(a: int) -> np.ndarray:  # bounded temporaries: (chunk, k, 3) at a time
+    def chunk(a: int) -> np.ndarray:  # bounded temporaries: (k, chunk) at a time
         b = min(a + CHUNK, idx.size)
         dist, nb = tree.query(pts[a:b], k=kk, workers=1)
-        dist, nb = np.atleast_2d(dist)[:, 1:], np.atleast_2d(nb)[:, 1:]
+        dist, nb = by_rank(np.atleast_2d(dist)[:, 1:]), by_rank(np.atleast_2d(nb)[:, 1:])
         up = None if axis is None else axis[idx[a:b]]
-        other = _other_pass(s, a, nb, dist)
+        other = other_pass(s, a, nb, dist)
         if balanced:
-            other &= _balanced(pts[a:b], tangent[a:b], pts, nb, other, up, k // 2)
-        n, conf, closest = _fit_cross(pts[a:b], tangent[a:b], pts, nb, dist, other, up)
+            other &= _balanced(pts[a:b], tangent[a:b], pts, nb.T, other.T, up, k // 2).T
+        n, conf, closest = fit_cross(pts[a:b], tangent[a:b], xyz, nb, dist, other, up)
         if curved:
-            n = curved_normals(pts[a:b], tangent[a:b], pts, nb, dist, other, n,
+            n = curved_normals(pts[a:b], tangent[a:b], pts, nb.T, dist.T, other.T, n,
                                conf == CONFIDENT)
         normal[idx[a:b]] = n
         confidence[idx[a:b]] = conf
@@ -191,7 +193,7 @@ def second_order_ends(pts: np.ndarray, s: np.ndarray, tangent: np.ndarray) -> np
 
 def _balanced(pts, tangent, all_pts, nb, other, axis, per_side: int) -> np.ndarray:
     """(m, k) bool: of the other passes' neighbours, the ``per_side`` nearest on each side
-    of the pass (across it, as :func:`_fit_cross` measures across)."""
+    of the pass (across it, as :func:`ncopt.contacts.pathfit.fit_cross` measures across)."""
     up = np.array([0.0, 0.0, 1.0]) if axis is None else axis
     u = np.cross(tangent, up)
     vertical = row_norms(u) < 1e-6
@@ -204,104 +206,6 @@ def _balanced(pts, tangent, all_pts, nb, other, axis, per_side: int) -> np.ndarr
         on = other & this
         keep |= on & (np.cumsum(on, axis=1) <= per_side)
     return keep
-
-
-def _other_pass(s: np.ndarray, a: int, nb: np.ndarray, dist: np.ndarray) -> np.ndarray:
-    """(m, k) bool: neighbour ``nb`` of point ``a + row`` lies on another pass (much
-    farther along the path, ``s``, than in a straight line, ``dist``)."""
-    along = np.take(s, nb)
-    along -= s[a:a + nb.shape[0], None]
-    np.abs(along, out=along)
-    limit = dist * OTHER_PASS_RATIO
-    limit += 1e-9
-    return np.greater(along, limit, out=np.empty(nb.shape, bool))
-
-
-def _fit_cross(pts, tangent, all_pts, nb, dist, other, axis=None):
-    """Normal perpendicular to the tangent fitting the other-pass neighbours
-    ``all_pts[nb]``; also the distance to the nearest other-pass point (inf where
-    there is none).  ``axis``: (m, 3) tool axes, None for +Z."""
-    up = np.array([0.0, 0.0, 1.0]) if axis is None else axis
-    u = np.cross(tangent, up)  # horizontal, across the pass
-    vertical = row_norms(u) < 1e-6  # a plunge: any horizontal direction will do
-    u[vertical] = [1.0, 0.0, 0.0] if axis is None else across(axis[vertical])
-    u /= np.maximum(row_norms(u), 1e-12)[:, None]
-    v = np.cross(u, tangent)  # perpendicular to the tangent, in its vertical plane
-    v[_up(v, axis) < 0] *= -1.0
-    off = np.take(all_pts, nb, axis=0)  # (m, k, 3); take: a third of all_pts[nb]'s time
-    off -= pts[:, None, :]
-    a = np.einsum("mkj,mj->mk", off, u)
-    b = np.einsum("mkj,mj->mk", off, v)
-    del off
-    saa, sbb, sab = _weighted_sums(a, b, dist, other)
-    # smallest eigenvector of [[saa, sab], [sab, sbb]]: the direction (alpha, beta)
-    # minimising sum w (alpha a + beta b)^2
-    half = 0.5 * (saa - sbb)
-    root = np.sqrt(half * half + sab * sab)
-    lam = 0.5 * (saa + sbb) - root
-    alpha, beta = sab, lam - saa
-    small = np.hypot(alpha, beta) < 1e-12 * np.maximum(saa + sbb, 1e-300)
-    alpha = np.where(small, 0.0, alpha)
-    beta = np.where(small, 1.0, beta)
-    n = alpha[:, None] * u + beta[:, None] * v
-    n /= np.maximum(row_norms(n), 1e-12)[:, None]
-    n[_up(n, axis) < 0] *= -1.0
-    has = _any_in_row(other)
-    n[~has] = v[~has]  # no other pass near: no cross-slope
-    side = np.greater(a, 0.0, out=np.empty(a.shape, bool))
-    side &= other
-    both = _any_in_row(side)
-    np.less(a, 0.0, out=side)
-    side &= other
-    both &= _any_in_row(side)
-    conf = np.where(~has, NO_CROSS, np.where(both, CONFIDENT, ONE_SIDED))
-    # the query sorts the neighbours by distance: the first other-pass one is the nearest
-    first = np.argmax(other, axis=1)
-    closest = np.where(has, np.take_along_axis(dist, first[:, None], axis=1)[:, 0], np.inf)
-    return n, conf.astype(np.int8), closest
-
-
-def _any_in_row(flags: np.ndarray) -> np.ndarray:
-    """(m,) flags.any(axis=1) for C-contiguous (m, k) bool: rows of k = 4 j bytes are
-    read as j 32-bit words (numpy's any over short rows calls its loop per row)."""
-    k = flags.shape[1]
-    if k == 0 or k % 4 or not flags.flags.c_contiguous:
-        return flags.any(axis=1)
-    words = flags.view(np.uint32)
-    acc = words[:, 0].copy()
-    for j in range(1, k // 4):
-        acc |= words[:, j]
-    return acc != 0
-
-
-def _weighted_sums(a, b, dist, other):
-    """Per row, sum w a a, sum w b b and sum w a b with w = 1 / dist^2 on the other
-    passes' neighbours, 0 elsewhere (``a``, ``b``, ``dist``, ``other``: (m, k))."""
-    w = np.maximum(dist, 1e-9)
-    np.multiply(w, w, out=w)
-    np.divide(1.0, w, out=w)
-    np.multiply(w, other, out=w)  # w is finite and >= 0 (the tree takes finite points only)
-    wa = w * a
-    term = wa * a
-    saa = term.sum(axis=1)
-    np.multiply(wa, b, out=term)
-    sab = term.sum(axis=1)
-    np.multiply(w, b, out=term)
-    term *= b
-    return saa, term.sum(axis=1), sab
-
-
-def _up(v: np.ndarray, axis: np.ndarray | None) -> np.ndarray:
-    """(m,) component of each row along the tool axis (+Z when None)."""
-    return v[:, 2] if axis is None else np.einsum("ij,ij->i", v, axis)
-
-
-def across(axis: np.ndarray) -> np.ndarray:
-    """(m, 3) unit vectors perpendicular to each tool axis (+X for +Z)."""
-    u = np.cross([0.0, 1.0, 0.0], axis)
-    small = row_norms(u) < 0.5
-    u[small] = np.cross(axis[small], [1.0, 0.0, 0.0])
-    return u / row_norms(u)[:, None]
 
 
 def contacts_from_path(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarray,
