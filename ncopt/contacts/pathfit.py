@@ -101,9 +101,10 @@ def _flip_down(v: np.ndarray, axis: np.ndarray | None) -> None:
     np.multiply(v, -1.0, out=v, where=(_up(v, axis) < 0)[:, None])
 
 
-def _frame(tangent: np.ndarray, axis: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+def frame(tangent: np.ndarray, axis: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     """(m, 3) unit ``u`` across the pass (horizontal) and ``v`` perpendicular to the
-    tangent in its vertical plane, toward the tool."""
+    tangent in its vertical plane, toward the tool (row by row: the same bits for a
+    whole path as chunk by chunk)."""
     up = np.array([0.0, 0.0, 1.0]) if axis is None else axis
     u = np.cross(tangent, up)  # horizontal, across the pass
     vertical = row_norms(u) < 1e-6  # a plunge: any horizontal direction will do
@@ -114,16 +115,15 @@ def _frame(tangent: np.ndarray, axis: np.ndarray | None) -> tuple[np.ndarray, np
     return u, v
 
 
-def fit_cross(pts, tangent, xyz, nb, dist, other, axis=None):
+def fit_cross(pts, u, v, xyz, nb, dist, other, axis=None):
     """Normal perpendicular to the tangent fitting the other-pass neighbours; also the
     distance to the nearest other-pass point (inf where there is none).
 
-    pts, tangent : (m, 3) points and unit tangents;  xyz : (3, M) every point's
+    pts : (m, 3) points;  u, v : (m, 3) their :func:`frame`;  xyz : (3, M) every point's
     coordinates;  nb, dist, other : (k, m) neighbours (indices into ``xyz``, nearest
     first), their distances and whether each is on another pass;  axis : (m, 3) tool
     axes, None for +Z.  Returns (m, 3) normals, (m,) int8 confidence, (m,) distances.
     """
-    u, v = _frame(tangent, axis)
     a, b = _offsets_across(pts, xyz, nb, u, v)
     saa, sbb, sab = _weighted_sums(a, b, dist, other)
     # smallest eigenvector of [[saa, sab], [sab, sbb]]: the direction (alpha, beta)

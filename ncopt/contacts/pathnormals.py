@@ -32,7 +32,7 @@ from ncopt.contacts.curvedfit import curved_normals
 from ncopt.contacts.kdtree import cKDTree
 # the confidences, the pass ratio and across are used from here by the other stages
 from ncopt.contacts.pathfit import (CONFIDENT, NO_CROSS, ONE_SIDED, OTHER_PASS_RATIO, across,
-                                    by_rank, fit_cross, other_pass)
+                                    by_rank, fit_cross, frame, other_pass)
 from ncopt.model import Contacts, Cutter
 from ncopt.runtime.threads import available_cpus, map_in_threads
 from ncopt.contacts.cutters import r_eff_mm
@@ -94,30 +94,38 @@ def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarra
     idx = np.flatnonzero(cutting)
     if idx.size < 2:
         return PathNormals(normal, confidence, float("nan"))
-    pts, s = np.take(centers_mm, idx, axis=0), np.take(path_mm, idx)
+    whole = idx.size == m  # every point is fitted (most programs): slices, no copies
+    pts = np.ascontiguousarray(centers_mm) if whole else np.take(centers_mm, idx, axis=0)
+    s = path_mm if whole else np.take(path_mm, idx)
     threads = available_cpus() if workers == -1 else workers
-    # the tree's build releases the GIL: the tangents and the coordinates are found meanwhile
-    tree, (tangent, xyz) = map_in_threads(
-        lambda job: job(), (lambda: cKDTree(pts), lambda: (_tangents(pts, s), by_rank(pts))),
-        threads)
-    if end_order == 2:
-        tangent = second_order_ends(pts, s, tangent)
+    up_all = axis if axis is None or whole else axis[idx]
+
+    def along() -> tuple:  # the tangents, the frames across them and the coordinates
+        tangent = _tangents(pts, s)
+        if end_order == 2:
+            tangent = second_order_ends(pts, s, tangent)
+        return (tangent, *frame(tangent, up_all), by_rank(pts))
+
+    # the tree's build releases the GIL (0.3 s at 1M points): the rest is found meanwhile
+    tree, (tangent, u, v, xyz) = map_in_threads(lambda job: job(),
+                                                (lambda: cKDTree(pts), along), threads)
     kk = min(2 * k + 1 if balanced else k + 1, idx.size)
 
     def chunk(a: int) -> np.ndarray:  # bounded temporaries: (k, chunk) at a time
         b = min(a + CHUNK, idx.size)
         dist, nb = tree.query(pts[a:b], k=kk, workers=1)
         dist, nb = by_rank(np.atleast_2d(dist)[:, 1:]), by_rank(np.atleast_2d(nb)[:, 1:])
-        up = None if axis is None else axis[idx[a:b]]
+        up = None if axis is None else up_all[a:b]
         other = other_pass(s, a, nb, dist)
         if balanced:
             other &= _balanced(pts[a:b], tangent[a:b], pts, nb.T, other.T, up, k // 2).T
-        n, conf, closest = fit_cross(pts[a:b], tangent[a:b], xyz, nb, dist, other, up)
+        n, conf, closest = fit_cross(pts[a:b], u[a:b], v[a:b], xyz, nb, dist, other, up)
         if curved:
             n = curved_normals(pts[a:b], tangent[a:b], pts, nb.T, dist.T, other.T, n,
                                conf == CONFIDENT)
-        normal[idx[a:b]] = n
-        confidence[idx[a:b]] = conf
+        rows = slice(a, b) if whole else idx[a:b]
+        normal[rows] = n
+        confidence[rows] = conf
         return closest
 
     # each thread queries and fits its own chunks: scipy's query and numpy's loops
