@@ -24,12 +24,13 @@ it is taken as zero and reported.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from ncopt.motion.modal import row_norms
 from ncopt.contacts.curvedfit import curved_normals
-from ncopt.contacts.kdtree import cKDTree
+from ncopt.contacts.kdtree import cKDTree, in_tree_order
 # the confidences, the pass ratio and across are used from here by the other stages
 from ncopt.contacts.pathfit import (CONFIDENT, NO_CROSS, ONE_SIDED, OTHER_PASS_RATIO, across,
                                     by_rank, fit_cross, frame, other_pass)
@@ -98,33 +99,14 @@ def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarra
     pts = np.ascontiguousarray(centers_mm) if whole else np.take(centers_mm, idx, axis=0)
     s = path_mm if whole else np.take(path_mm, idx)
     threads = available_cpus() if workers == -1 else workers
-    up_all = axis if axis is None or whole else axis[idx]
-
-    def along() -> tuple:  # the frames across the pass, the coordinates, the tangents
-        tangent = _tangents(pts, s)
-        if end_order == 2:
-            tangent = second_order_ends(pts, s, tangent)
-        # the tangents are kept for the balanced and curved fits only (24 MB at 1M points)
-        return (*frame(tangent, up_all), by_rank(pts), tangent if balanced or curved else None)
-
-    # the tree's build releases the GIL (0.3 s at 1M points): the rest is found meanwhile
-    tree, (u, v, xyz, tangent) = map_in_threads(lambda job: job(),
-                                                (lambda: cKDTree(pts), along), threads)
     kk = min(2 * k + 1 if balanced else k + 1, idx.size)
+    sp = _searchable(pts, s, axis if axis is None or whole else axis[idx], end_order,
+                     balanced or curved, kk, threads)
 
     def chunk(a: int) -> np.ndarray:  # bounded temporaries: (k, chunk) at a time
-        b = min(a + CHUNK, idx.size)
-        dist, nb = tree.query(pts[a:b], k=kk, workers=1)
-        dist, nb = by_rank(np.atleast_2d(dist)[:, 1:]), by_rank(np.atleast_2d(nb)[:, 1:])
-        up = None if axis is None else up_all[a:b]
-        other = other_pass(s, a, nb, dist)
-        if balanced:
-            other &= _balanced(pts[a:b], tangent[a:b], pts, nb.T, other.T, up, k // 2).T
-        n, conf, closest = fit_cross(pts[a:b], u[a:b], v[a:b], xyz, nb, dist, other, up)
-        if curved:
-            n = curved_normals(pts[a:b], tangent[a:b], pts, nb.T, dist.T, other.T, n,
-                               conf == CONFIDENT)
-        rows = slice(a, b) if whole else idx[a:b]
+        at, n, conf, closest = _fit_chunk(sp, a, min(a + CHUNK, idx.size), kk,
+                                          k // 2 if balanced else None, curved)
+        rows = at if whole else idx[at]
         normal[rows] = n
         confidence[rows] = conf
         return closest
@@ -134,6 +116,68 @@ def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarra
     near = np.concatenate(map_in_threads(chunk, range(0, idx.size, CHUNK), threads))
     stepover = float(np.median(near[np.isfinite(near)])) if np.isfinite(near).any() else float("nan")
     return PathNormals(normal, confidence, stepover)
+
+
+class _Searchable(NamedTuple):
+    """The fitted points as the chunks read them.  They are queried and fitted in the k-d
+    tree's order (:func:`ncopt.contacts.kdtree.in_tree_order`): ``pos`` (M,) is the
+    fitted point at each place in that order (None: the path's order, as given); ``pts``
+    (M, 3), ``s`` (M,) and ``xyz`` (3, M) are in that order, ``u``, ``v`` (M, 3) (their
+    :func:`ncopt.contacts.pathfit.frame`), ``tangent`` and ``up`` (M, 3) or None in the
+    path's."""
+
+    tree: object
+    pos: np.ndarray | None
+    pts: np.ndarray
+    s: np.ndarray
+    xyz: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    tangent: np.ndarray | None
+    up: np.ndarray | None
+
+
+def _searchable(pts: np.ndarray, s: np.ndarray, up: np.ndarray | None, end_order: int,
+                keep_tangent: bool, kk: int, threads: int) -> _Searchable:
+    """The k-d tree of the fitted points ``pts`` (path lengths ``s``, tool axes ``up``),
+    their frames across the pass, and all in the tree's order (:class:`_Searchable`)."""
+    def along() -> tuple:  # the frames across the pass and the tangents
+        tangent = _tangents(pts, s)
+        if end_order == 2:
+            tangent = second_order_ends(pts, s, tangent)
+        # the tangents are kept for the balanced and curved fits only (24 MB at 1M points)
+        return (*frame(tangent, up), tangent if keep_tangent else None)
+
+    # the tree's build releases the GIL (0.3 s at 1M points): the rest is found meanwhile
+    tree, (u, v, tangent) = map_in_threads(lambda job: job(),
+                                           (lambda: cKDTree(pts), along), threads)
+    tree, pos, q_pts = in_tree_order(tree, kk) or (tree, None, pts)
+    s_q, xyz = map_in_threads(lambda job: job(), (lambda: s if pos is None else s[pos],
+                                                  lambda: by_rank(q_pts)), threads)
+    return _Searchable(tree, pos, q_pts, s_q, xyz, u, v, tangent, up)
+
+
+def _fit_chunk(sp: _Searchable, a: int, b: int, kk: int, per_side: int | None, curved: bool):
+    """Places ``a:b`` of the tree's order: which fitted points they are (a slice or
+    indices), their normals, confidences and distances to the nearest other pass
+    (``per_side``: the balanced fit's neighbours on each side, None for the plain fit)."""
+    dist, nb = sp.tree.query(sp.pts[a:b], k=kk, workers=1)
+    dist, nb = by_rank(np.atleast_2d(dist)[:, 1:]), by_rank(np.atleast_2d(nb)[:, 1:])
+    at = slice(a, b) if sp.pos is None else sp.pos[a:b]
+
+    def here(rows: np.ndarray | None) -> np.ndarray | None:  # take: 3x faster than [at]
+        if rows is None or sp.pos is None:
+            return None if rows is None else rows[at]
+        return np.take(rows, at, axis=0)
+
+    pts, up, tangent = sp.pts[a:b], here(sp.up), here(sp.tangent)
+    other = other_pass(sp.s, a, nb, dist)
+    if per_side is not None:
+        other &= _balanced(pts, tangent, sp.pts, nb.T, other.T, up, per_side).T
+    n, conf, closest = fit_cross(pts, here(sp.u), here(sp.v), sp.xyz, nb, dist, other, up)
+    if curved:
+        n = curved_normals(pts, tangent, sp.pts, nb.T, dist.T, other.T, n, conf == CONFIDENT)
+    return at, n, conf, closest
 
 
 def _tangents(pts: np.ndarray, s: np.ndarray) -> np.ndarray:
