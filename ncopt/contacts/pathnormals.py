@@ -114,7 +114,8 @@ def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarra
     # each thread queries and fits its own chunks: scipy's query and numpy's loops
     # release the GIL, so the fit of one chunk overlaps the query of the next
     near = np.concatenate(map_in_threads(chunk, range(0, idx.size, CHUNK), threads))
-    stepover = float(np.median(near[np.isfinite(near)])) if np.isfinite(near).any() else float("nan")
+    finite = np.isfinite(near)
+    stepover = float(np.median(near[finite])) if finite.any() else float("nan")
     return PathNormals(normal, confidence, stepover)
 
 
