@@ -147,8 +147,19 @@ def fit_cross(pts, u, v, xyz, nb, dist, other, axis=None):
     side &= other
     both &= np.logical_or.reduce(side, axis=0)
     conf = np.where(~has, NO_CROSS, np.where(both, CONFIDENT, ONE_SIDED)).astype(np.int8)
-    # the neighbours come nearest first: the least other-pass distance is the first one's
-    closest = np.where(other, dist, np.inf).min(axis=0)
+    return n, conf, _closest(dist, other)
+
+
+def _closest(dist: np.ndarray, other: np.ndarray) -> np.ndarray:
+    """(m,) distance to the nearest other-pass neighbour (inf: none) of (k, m) ``dist``,
+    ``other``.  The neighbours come nearest first: where the nearest is on another pass
+    (most points, where the passes lie closer than the points along them) it is the
+    first distance, elsewhere the least over the others."""
+    closest = np.where(other[0], dist[0], np.inf)
+    rest = np.flatnonzero(~other[0])
+    if rest.size:
+        closest[rest] = np.where(other[:, rest], dist[:, rest], np.inf).min(axis=0)
+    return closest
     return n, conf, closest
 
 
