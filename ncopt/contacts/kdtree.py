@@ -92,7 +92,7 @@ def in_tree_order(tree, k: int):
     twin = type(tree).__new__(type(tree))
     twin.__setstate__((nodes, ordered, n, m, leafsize, maxes, mins,
                        np.arange(n, dtype=order.dtype), boxsize, boxsize_data))
-    probe = ordered[np.linspace(0, n - 1, min(n, 16)).astype(np.intp)]
+    probe = ordered[np.linspace(0, n - 1, min(n, 64)).astype(np.intp)]
     k = max(1, min(k, n))
     want, got = tree.query(probe, k=k), twin.query(probe, k=k)
     if not (np.array_equal(want[0], got[0]) and np.array_equal(want[1], order[got[1]])):
