@@ -24,20 +24,22 @@ it is taken as zero and reported.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from ncopt.motion.modal import row_norms
 from ncopt.contacts.curvedfit import curved_normals
-from ncopt.contacts.kdtree import cKDTree
+from ncopt.contacts.kdtree import cKDTree, in_tree_order
+# the confidences, the pass ratio and across are used from here by the other stages
+from ncopt.contacts.pathfit import (CONFIDENT, NO_CROSS, ONE_SIDED, OTHER_PASS_RATIO, across,
+                                    by_rank, fit_cross, frame, other_pass)
 from ncopt.model import Contacts, Cutter
 from ncopt.runtime.threads import available_cpus, map_in_threads
 from ncopt.contacts.cutters import r_eff_mm
 
 K_NEIGHBOURS = 12  # enough for 4-5 points per pass on each side at CAM-typical spacings
-CHUNK = 16384  # points a chunk: its (chunk, k, 3) temporaries stay in a core's cache
-OTHER_PASS_RATIO = 3.0  # path distance > ratio * straight distance: another pass
-CONFIDENT, ONE_SIDED, NO_CROSS = 2, 1, 0
+CHUNK = 16384  # points a chunk: its (k, chunk) temporaries stay in a core's cache
 # A one-sided fit on a curved surface tilts the normal by about half the stepover
 # times the curvature; planning takes the normal this much steeper (a larger
 # R_eff, a lower required speed), so vc stays under its target there.
@@ -93,36 +95,90 @@ def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarra
     idx = np.flatnonzero(cutting)
     if idx.size < 2:
         return PathNormals(normal, confidence, float("nan"))
-    pts, s = np.take(centers_mm, idx, axis=0), np.take(path_mm, idx)
+    whole = idx.size == m  # every point is fitted (most programs): slices, no copies
+    pts = np.ascontiguousarray(centers_mm) if whole else np.take(centers_mm, idx, axis=0)
+    s = path_mm if whole else np.take(path_mm, idx)
     threads = available_cpus() if workers == -1 else workers
-    # the tree's build releases the GIL: the tangents are computed meanwhile
-    tree, tangent = map_in_threads(lambda job: job(), (lambda: cKDTree(pts),
-                                                       lambda: _tangents(pts, s)), threads)
-    if end_order == 2:
-        tangent = second_order_ends(pts, s, tangent)
     kk = min(2 * k + 1 if balanced else k + 1, idx.size)
+    sp = _searchable(pts, s, axis if axis is None or whole else axis[idx], end_order,
+                     balanced or curved, kk, threads)
 
-    def chunk(a: int) -> np.ndarray:  # bounded temporaries: (chunk, k, 3) at a time
-        b = min(a + CHUNK, idx.size)
-        dist, nb = tree.query(pts[a:b], k=kk, workers=1)
-        dist, nb = np.atleast_2d(dist)[:, 1:], np.atleast_2d(nb)[:, 1:]
-        up = None if axis is None else axis[idx[a:b]]
-        other = _other_pass(s, a, nb, dist)
-        if balanced:
-            other &= _balanced(pts[a:b], tangent[a:b], pts, nb, other, up, k // 2)
-        n, conf, closest = _fit_cross(pts[a:b], tangent[a:b], pts, nb, dist, other, up)
-        if curved:
-            n = curved_normals(pts[a:b], tangent[a:b], pts, nb, dist, other, n,
-                               conf == CONFIDENT)
-        normal[idx[a:b]] = n
-        confidence[idx[a:b]] = conf
+    def chunk(a: int) -> np.ndarray:  # bounded temporaries: (k, chunk) at a time
+        at, n, conf, closest = _fit_chunk(sp, a, min(a + CHUNK, idx.size), kk,
+                                          k // 2 if balanced else None, curved)
+        rows = at if whole else idx[at]
+        normal[rows] = n
+        confidence[rows] = conf
         return closest
 
     # each thread queries and fits its own chunks: scipy's query and numpy's loops
     # release the GIL, so the fit of one chunk overlaps the query of the next
     near = np.concatenate(map_in_threads(chunk, range(0, idx.size, CHUNK), threads))
-    stepover = float(np.median(near[np.isfinite(near)])) if np.isfinite(near).any() else float("nan")
+    finite = np.isfinite(near)
+    stepover = float(np.median(near[finite])) if finite.any() else float("nan")
     return PathNormals(normal, confidence, stepover)
+
+
+class _Searchable(NamedTuple):
+    """The fitted points as the chunks read them.  They are queried and fitted in the k-d
+    tree's order (:func:`ncopt.contacts.kdtree.in_tree_order`): ``pos`` (M,) is the
+    fitted point at each place in that order (None: the path's order, as given); ``pts``
+    (M, 3), ``s`` (M,) and ``xyz`` (3, M) are in that order, ``u``, ``v`` (M, 3) (their
+    :func:`ncopt.contacts.pathfit.frame`), ``tangent`` and ``up`` (M, 3) or None in the
+    path's."""
+
+    tree: object
+    pos: np.ndarray | None
+    pts: np.ndarray
+    s: np.ndarray
+    xyz: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    tangent: np.ndarray | None
+    up: np.ndarray | None
+
+
+def _searchable(pts: np.ndarray, s: np.ndarray, up: np.ndarray | None, end_order: int,
+                keep_tangent: bool, kk: int, threads: int) -> _Searchable:
+    """The k-d tree of the fitted points ``pts`` (path lengths ``s``, tool axes ``up``),
+    their frames across the pass, and all in the tree's order (:class:`_Searchable`)."""
+    def along() -> tuple:  # the frames across the pass and the tangents
+        tangent = _tangents(pts, s)
+        if end_order == 2:
+            tangent = second_order_ends(pts, s, tangent)
+        # the tangents are kept for the balanced and curved fits only (24 MB at 1M points)
+        return (*frame(tangent, up), tangent if keep_tangent else None)
+
+    # the tree's build releases the GIL (0.3 s at 1M points): the rest is found meanwhile
+    tree, (u, v, tangent) = map_in_threads(lambda job: job(),
+                                           (lambda: cKDTree(pts), along), threads)
+    tree, pos, q_pts = in_tree_order(tree, kk) or (tree, None, pts)
+    s_q, xyz = map_in_threads(lambda job: job(), (lambda: s if pos is None else s[pos],
+                                                  lambda: by_rank(q_pts)), threads)
+    return _Searchable(tree, pos, q_pts, s_q, xyz, u, v, tangent, up)
+
+
+def _fit_chunk(sp: _Searchable, a: int, b: int, kk: int, per_side: int | None, curved: bool):
+    """Places ``a:b`` of the tree's order: which fitted points they are (a slice or
+    indices), their normals, confidences and distances to the nearest other pass
+    (``per_side``: the balanced fit's neighbours on each side, None for the plain fit)."""
+    dist, nb = sp.tree.query(sp.pts[a:b], k=kk, workers=1)
+    dist, nb = by_rank(np.atleast_2d(dist)[:, 1:]), by_rank(np.atleast_2d(nb)[:, 1:])
+    at = slice(a, b) if sp.pos is None else sp.pos[a:b]
+
+    def here(rows: np.ndarray | None) -> np.ndarray | None:  # take: 3x faster than [at]
+        if rows is None or sp.pos is None:
+            return None if rows is None else rows[at]
+        return np.take(rows, at, axis=0)
+
+    pts, up, tangent = sp.pts[a:b], here(sp.up), here(sp.tangent)
+    other = other_pass(sp.s, a, nb, dist)
+    if per_side is not None:
+        other &= _balanced(pts, tangent, sp.pts, nb.T, other.T, up, per_side).T
+    n, conf, closest = fit_cross(pts, here(sp.u), here(sp.v), sp.xyz, nb, dist, other, up)
+    if curved:
+        n = curved_normals(pts, tangent, sp.pts, nb.T, dist.T, other.T, n, conf == CONFIDENT)
+    return at, n, conf, closest
 
 
 def _tangents(pts: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -191,7 +247,7 @@ def second_order_ends(pts: np.ndarray, s: np.ndarray, tangent: np.ndarray) -> np
 
 def _balanced(pts, tangent, all_pts, nb, other, axis, per_side: int) -> np.ndarray:
     """(m, k) bool: of the other passes' neighbours, the ``per_side`` nearest on each side
-    of the pass (across it, as :func:`_fit_cross` measures across)."""
+    of the pass (across it, as :func:`ncopt.contacts.pathfit.fit_cross` measures across)."""
     up = np.array([0.0, 0.0, 1.0]) if axis is None else axis
     u = np.cross(tangent, up)
     vertical = row_norms(u) < 1e-6
@@ -204,104 +260,6 @@ def _balanced(pts, tangent, all_pts, nb, other, axis, per_side: int) -> np.ndarr
         on = other & this
         keep |= on & (np.cumsum(on, axis=1) <= per_side)
     return keep
-
-
-def _other_pass(s: np.ndarray, a: int, nb: np.ndarray, dist: np.ndarray) -> np.ndarray:
-    """(m, k) bool: neighbour ``nb`` of point ``a + row`` lies on another pass (much
-    farther along the path, ``s``, than in a straight line, ``dist``)."""
-    along = np.take(s, nb)
-    along -= s[a:a + nb.shape[0], None]
-    np.abs(along, out=along)
-    limit = dist * OTHER_PASS_RATIO
-    limit += 1e-9
-    return np.greater(along, limit, out=np.empty(nb.shape, bool))
-
-
-def _fit_cross(pts, tangent, all_pts, nb, dist, other, axis=None):
-    """Normal perpendicular to the tangent fitting the other-pass neighbours
-    ``all_pts[nb]``; also the distance to the nearest other-pass point (inf where
-    there is none).  ``axis``: (m, 3) tool axes, None for +Z."""
-    up = np.array([0.0, 0.0, 1.0]) if axis is None else axis
-    u = np.cross(tangent, up)  # horizontal, across the pass
-    vertical = row_norms(u) < 1e-6  # a plunge: any horizontal direction will do
-    u[vertical] = [1.0, 0.0, 0.0] if axis is None else across(axis[vertical])
-    u /= np.maximum(row_norms(u), 1e-12)[:, None]
-    v = np.cross(u, tangent)  # perpendicular to the tangent, in its vertical plane
-    v[_up(v, axis) < 0] *= -1.0
-    off = np.take(all_pts, nb, axis=0)  # (m, k, 3); take: a third of all_pts[nb]'s time
-    off -= pts[:, None, :]
-    a = np.einsum("mkj,mj->mk", off, u)
-    b = np.einsum("mkj,mj->mk", off, v)
-    del off
-    saa, sbb, sab = _weighted_sums(a, b, dist, other)
-    # smallest eigenvector of [[saa, sab], [sab, sbb]]: the direction (alpha, beta)
-    # minimising sum w (alpha a + beta b)^2
-    half = 0.5 * (saa - sbb)
-    root = np.sqrt(half * half + sab * sab)
-    lam = 0.5 * (saa + sbb) - root
-    alpha, beta = sab, lam - saa
-    small = np.hypot(alpha, beta) < 1e-12 * np.maximum(saa + sbb, 1e-300)
-    alpha = np.where(small, 0.0, alpha)
-    beta = np.where(small, 1.0, beta)
-    n = alpha[:, None] * u + beta[:, None] * v
-    n /= np.maximum(row_norms(n), 1e-12)[:, None]
-    n[_up(n, axis) < 0] *= -1.0
-    has = _any_in_row(other)
-    n[~has] = v[~has]  # no other pass near: no cross-slope
-    side = np.greater(a, 0.0, out=np.empty(a.shape, bool))
-    side &= other
-    both = _any_in_row(side)
-    np.less(a, 0.0, out=side)
-    side &= other
-    both &= _any_in_row(side)
-    conf = np.where(~has, NO_CROSS, np.where(both, CONFIDENT, ONE_SIDED))
-    # the query sorts the neighbours by distance: the first other-pass one is the nearest
-    first = np.argmax(other, axis=1)
-    closest = np.where(has, np.take_along_axis(dist, first[:, None], axis=1)[:, 0], np.inf)
-    return n, conf.astype(np.int8), closest
-
-
-def _any_in_row(flags: np.ndarray) -> np.ndarray:
-    """(m,) flags.any(axis=1) for C-contiguous (m, k) bool: rows of k = 4 j bytes are
-    read as j 32-bit words (numpy's any over short rows calls its loop per row)."""
-    k = flags.shape[1]
-    if k == 0 or k % 4 or not flags.flags.c_contiguous:
-        return flags.any(axis=1)
-    words = flags.view(np.uint32)
-    acc = words[:, 0].copy()
-    for j in range(1, k // 4):
-        acc |= words[:, j]
-    return acc != 0
-
-
-def _weighted_sums(a, b, dist, other):
-    """Per row, sum w a a, sum w b b and sum w a b with w = 1 / dist^2 on the other
-    passes' neighbours, 0 elsewhere (``a``, ``b``, ``dist``, ``other``: (m, k))."""
-    w = np.maximum(dist, 1e-9)
-    np.multiply(w, w, out=w)
-    np.divide(1.0, w, out=w)
-    np.multiply(w, other, out=w)  # w is finite and >= 0 (the tree takes finite points only)
-    wa = w * a
-    term = wa * a
-    saa = term.sum(axis=1)
-    np.multiply(wa, b, out=term)
-    sab = term.sum(axis=1)
-    np.multiply(w, b, out=term)
-    term *= b
-    return saa, term.sum(axis=1), sab
-
-
-def _up(v: np.ndarray, axis: np.ndarray | None) -> np.ndarray:
-    """(m,) component of each row along the tool axis (+Z when None)."""
-    return v[:, 2] if axis is None else np.einsum("ij,ij->i", v, axis)
-
-
-def across(axis: np.ndarray) -> np.ndarray:
-    """(m, 3) unit vectors perpendicular to each tool axis (+X for +Z)."""
-    u = np.cross([0.0, 1.0, 0.0], axis)
-    small = row_norms(u) < 0.5
-    u[small] = np.cross(axis[small], [1.0, 0.0, 0.0])
-    return u / row_norms(u)[:, None]
 
 
 def contacts_from_path(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarray,

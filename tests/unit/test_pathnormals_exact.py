@@ -12,10 +12,16 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
+import ncopt.contacts.pathfit as pf
 import ncopt.contacts.pathnormals as pn
 from ncopt.motion.modal import row_norms
 from ncopt.model import Cutter
 from ncopt.contacts.cutters import r_eff_mm
+
+
+def up_part(v, axis):
+    """Each row's component along the tool axis (+Z when None)."""
+    return v[:, 2] if axis is None else np.einsum("ij,ij->i", v, axis)
 
 
 def reference(centers, path, cutting, axis=None, k=pn.K_NEIGHBOURS):
@@ -47,7 +53,7 @@ def reference(centers, path, cutting, axis=None, k=pn.K_NEIGHBOURS):
         u[vertical] = [1.0, 0.0, 0.0] if up_ax is None else pn.across(up_ax[vertical])
         u /= np.maximum(np.linalg.norm(u, axis=1), 1e-12)[:, None]
         v = np.cross(u, t)
-        v[pn._up(v, up_ax) < 0] *= -1.0
+        v[up_part(v, up_ax) < 0] *= -1.0
         off = pts[nb] - pts[:, None, :]
         a = np.einsum("mkj,mj->mk", off, u)
         b = np.einsum("mkj,mj->mk", off, v)
@@ -60,7 +66,7 @@ def reference(centers, path, cutting, axis=None, k=pn.K_NEIGHBOURS):
         alpha, beta = np.where(small, 0.0, alpha), np.where(small, 1.0, beta)
         n = alpha[:, None] * u + beta[:, None] * v
         n /= np.maximum(np.linalg.norm(n, axis=1), 1e-12)[:, None]
-        n[pn._up(n, up_ax) < 0] *= -1.0
+        n[up_part(n, up_ax) < 0] *= -1.0
         has = other.any(axis=1)
         n[~has] = v[~has]
         two = (other & (a > 0)).any(axis=1) & (other & (a < 0)).any(axis=1)
@@ -202,8 +208,52 @@ def test_row_norms_have_the_bits_of_numpys_norm():
         assert np.array_equal(bits(row_norms(v)), bits(np.linalg.norm(v, axis=1)))
 
 
-@pytest.mark.parametrize("k", [0, 3, 4, 12, 13])
-def test_any_in_row_is_any(k):
-    flags = np.random.default_rng(k).random((500, k)) > 0.93
-    assert np.array_equal(pn._any_in_row(flags), flags.any(axis=1))
-    assert np.array_equal(pn._any_in_row(flags[:, ::-1]), flags.any(axis=1))  # not contiguous
+@pytest.mark.parametrize("k", list(range(1, 20)) + [24, 25, 40, 129, 200])
+@pytest.mark.parametrize("m", [1, 3, 500])
+def test_rank_sums_have_the_bits_of_numpys_row_sums(k, m):
+    rng = np.random.default_rng(k * 1000 + m)
+    t = rng.normal(size=(m, k)) * rng.choice([1e-300, 1e-8, 1.0, 1e8], (m, k))
+    t[rng.random((m, k)) < 0.3] = -0.0
+    t[rng.random((m, k)) < 0.1] = 0.0
+    t[::4] = -0.0  # rows of negative zeros only: numpy's sum is +0.0
+    assert np.array_equal(bits(pf.rank_sums(np.ascontiguousarray(t.T))), bits(t.sum(axis=1)))
+
+
+def test_projections_have_the_bits_of_einsum():
+    rng = np.random.default_rng(8)
+    off = rng.normal(size=(3000, 12, 3)) * rng.choice([1e-8, 1.0, 1e8], (3000, 12, 3))
+    off[::5, :, 1] = -0.0
+    u = rng.normal(size=(3000, 3))
+    got = pf._project(*(np.ascontiguousarray(off[..., j].T) for j in range(3)),
+                      np.ascontiguousarray(u.T))
+    want = np.einsum("mkj,mj->mk", off, u).T
+    assert np.array_equal(got, want)  # as numbers: the sign of a zero may differ (_project)
+    assert np.array_equal(bits(got[got != 0.0]), bits(want[want != 0.0]))
+
+
+def test_the_tree_in_its_own_order_answers_as_the_tree():
+    """in_tree_order's twin: the same distances and neighbours, in the same order where
+    distances are equal (a regular grid: many ties), the indices mapped back."""
+    from ncopt.contacts.kdtree import in_tree_order
+    g = np.arange(0.0, 3.0, 0.25)
+    pts = np.array(np.meshgrid(g, g, [0.0, 0.5], indexing="ij")).reshape(3, -1).T.copy()
+    pts = pts[np.random.default_rng(9).permutation(len(pts))]
+    tree = cKDTree(pts)
+    twin, order, ordered = in_tree_order(tree, 13)
+    assert np.array_equal(ordered, pts[order])
+    want_d, want_i = tree.query(pts, k=13)
+    got_d, got_i = twin.query(pts, k=13)
+    assert np.array_equal(bits(got_d), bits(want_d))
+    assert np.array_equal(order[got_i], want_i)
+
+
+@pytest.mark.parametrize("five_axis", [False, True])
+def test_the_path_order_gives_the_same_bits(monkeypatch, five_axis):
+    """Where the tree cannot be had in its own order, the points are fitted in the path's."""
+    rng = np.random.default_rng(10)
+    pts, path, cutting = toolpath(rng, jitter=0.02)
+    axis = tilted_axes(rng, len(pts)) if five_axis else None
+    want = reference(pts, path, cutting, axis)
+    monkeypatch.setattr(pn, "in_tree_order", lambda tree, k: None)
+    monkeypatch.setattr(pn, "CHUNK", 13)
+    assert_same(pn.path_normals(pts, path, cutting, workers=2, axis=axis), want)
