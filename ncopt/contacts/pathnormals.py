@@ -30,7 +30,7 @@ import numpy as np
 
 from ncopt.motion.modal import row_norms
 from ncopt.contacts.curvedfit import curved_normals
-from ncopt.contacts.kdtree import cKDTree, in_tree_order
+from ncopt.contacts.kdtree import cKDTree
 # the confidences, the pass ratio and across are used from here by the other stages
 from ncopt.contacts.pathfit import (CONFIDENT, NO_CROSS, ONE_SIDED, OTHER_PASS_RATIO, across,
                                     by_rank, fit_cross, frame, other_pass)
@@ -101,7 +101,7 @@ def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarra
     threads = available_cpus() if workers == -1 else workers
     kk = min(2 * k + 1 if balanced else k + 1, idx.size)
     sp = _searchable(pts, s, axis if axis is None or whole else axis[idx], end_order,
-                     balanced or curved, kk, threads)
+                     balanced or curved, threads)
 
     def chunk(a: int) -> np.ndarray:  # bounded temporaries: (k, chunk) at a time
         at, n, conf, closest = _fit_chunk(sp, a, min(a + CHUNK, idx.size), kk,
@@ -120,15 +120,12 @@ def path_normals(centers_mm: np.ndarray, path_mm: np.ndarray, cutting: np.ndarra
 
 
 class _Searchable(NamedTuple):
-    """The fitted points as the chunks read them.  They are queried and fitted in the k-d
-    tree's order (:func:`ncopt.contacts.kdtree.in_tree_order`): ``pos`` (M,) is the
-    fitted point at each place in that order (None: the path's order, as given); ``pts``
-    (M, 3), ``s`` (M,) and ``xyz`` (3, M) are in that order, ``u``, ``v`` (M, 3) (their
-    :func:`ncopt.contacts.pathfit.frame`), ``tangent`` and ``up`` (M, 3) or None in the
-    path's."""
+    """The fitted points as the chunks read them, in the path's order: ``pts`` (M, 3),
+    ``s`` (M,), ``xyz`` (3, M) (:func:`ncopt.contacts.pathfit.by_rank`), ``u``, ``v``
+    (M, 3) (their :func:`ncopt.contacts.pathfit.frame`), ``tangent`` and ``up`` (M, 3)
+    or None."""
 
     tree: object
-    pos: np.ndarray | None
     pts: np.ndarray
     s: np.ndarray
     xyz: np.ndarray
@@ -139,9 +136,9 @@ class _Searchable(NamedTuple):
 
 
 def _searchable(pts: np.ndarray, s: np.ndarray, up: np.ndarray | None, end_order: int,
-                keep_tangent: bool, kk: int, threads: int) -> _Searchable:
-    """The k-d tree of the fitted points ``pts`` (path lengths ``s``, tool axes ``up``),
-    their frames across the pass, and all in the tree's order (:class:`_Searchable`)."""
+                keep_tangent: bool, threads: int) -> _Searchable:
+    """The k-d tree of the fitted points ``pts`` (path lengths ``s``, tool axes ``up``)
+    and their frames across the pass (:class:`_Searchable`)."""
     def along() -> tuple:  # the frames across the pass and the tangents
         tangent = _tangents(pts, s)
         if end_order == 2:
@@ -150,26 +147,20 @@ def _searchable(pts: np.ndarray, s: np.ndarray, up: np.ndarray | None, end_order
         return (*frame(tangent, up), tangent if keep_tangent else None)
 
     # the tree's build releases the GIL (0.3 s at 1M points): the rest is found meanwhile
-    tree, (u, v, tangent) = map_in_threads(lambda job: job(),
-                                           (lambda: cKDTree(pts), along), threads)
-    tree, pos, q_pts = in_tree_order(tree, kk) or (tree, None, pts)
-    s_q, xyz = map_in_threads(lambda job: job(), (lambda: s if pos is None else s[pos],
-                                                  lambda: by_rank(q_pts)), threads)
-    return _Searchable(tree, pos, q_pts, s_q, xyz, u, v, tangent, up)
+    tree, (u, v, tangent), xyz = map_in_threads(
+        lambda job: job(), (lambda: cKDTree(pts), along, lambda: by_rank(pts)), threads)
+    return _Searchable(tree, pts, s, xyz, u, v, tangent, up)
 
 
 def _fit_chunk(sp: _Searchable, a: int, b: int, kk: int, per_side: int | None, curved: bool):
-    """Places ``a:b`` of the tree's order: which fitted points they are (a slice or
-    indices), their normals, confidences and distances to the nearest other pass
+    """Points ``a:b``: their normals, confidences and distances to the nearest other pass
     (``per_side``: the balanced fit's neighbours on each side, None for the plain fit)."""
     dist, nb = sp.tree.query(sp.pts[a:b], k=kk, workers=1)
     dist, nb = by_rank(np.atleast_2d(dist)[:, 1:]), by_rank(np.atleast_2d(nb)[:, 1:])
-    at = slice(a, b) if sp.pos is None else sp.pos[a:b]
+    at = slice(a, b)
 
-    def here(rows: np.ndarray | None) -> np.ndarray | None:  # take: 3x faster than [at]
-        if rows is None or sp.pos is None:
-            return None if rows is None else rows[at]
-        return np.take(rows, at, axis=0)
+    def here(rows: np.ndarray | None) -> np.ndarray | None:
+        return None if rows is None else rows[at]
 
     pts, up, tangent = sp.pts[a:b], here(sp.up), here(sp.tangent)
     other = other_pass(sp.s, a, nb, dist)

@@ -231,29 +231,12 @@ def test_projections_have_the_bits_of_einsum():
     assert np.array_equal(bits(got[got != 0.0]), bits(want[want != 0.0]))
 
 
-def test_the_tree_in_its_own_order_answers_as_the_tree():
-    """in_tree_order's twin: the same distances and neighbours, in the same order where
-    distances are equal (a regular grid: many ties), the indices mapped back."""
-    from ncopt.contacts.kdtree import in_tree_order
-    g = np.arange(0.0, 3.0, 0.25)
-    pts = np.array(np.meshgrid(g, g, [0.0, 0.5], indexing="ij")).reshape(3, -1).T.copy()
-    pts = pts[np.random.default_rng(9).permutation(len(pts))]
-    tree = cKDTree(pts)
-    twin, order, ordered = in_tree_order(tree, 13)
-    assert np.array_equal(ordered, pts[order])
-    want_d, want_i = tree.query(pts, k=13)
-    got_d, got_i = twin.query(pts, k=13)
-    assert np.array_equal(bits(got_d), bits(want_d))
-    assert np.array_equal(order[got_i], want_i)
-
-
 @pytest.mark.parametrize("five_axis", [False, True])
-def test_the_path_order_gives_the_same_bits(monkeypatch, five_axis):
-    """Where the tree cannot be had in its own order, the points are fitted in the path's."""
+def test_small_chunks_give_the_same_bits(monkeypatch, five_axis):
+    """The points fitted chunk by chunk in two threads: the reference's bits."""
     rng = np.random.default_rng(10)
     pts, path, cutting = toolpath(rng, jitter=0.02)
     axis = tilted_axes(rng, len(pts)) if five_axis else None
     want = reference(pts, path, cutting, axis)
-    monkeypatch.setattr(pn, "in_tree_order", lambda tree, k: None)
     monkeypatch.setattr(pn, "CHUNK", 13)
     assert_same(pn.path_normals(pts, path, cutting, workers=2, axis=axis), want)
