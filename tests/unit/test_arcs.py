@@ -218,3 +218,17 @@ def test_piece_counts_are_the_reference_next_to_whole_numbers():
     want = [min(max(int(math.ceil(s / max(st_, 1e-6))), 1), 100000)
             for s, st_ in zip(sweep.tolist(), step.tolist())]
     assert got.tolist() == want
+
+
+@settings(max_examples=300)
+@given(st.lists(st.tuples(ANY_FLOAT, ANY_FLOAT), min_size=1, max_size=40))
+def test_angles_of_many_pairs_are_math_atan2_bit_for_bit(pairs):
+    """cmath.phase's path and its fallback where atan2 underflows (tiny y over large x)."""
+    y, x = (np.array(v, dtype=np.float64) for v in zip(*pairs))
+    want = np.array([math.atan2(a, b) for a, b in pairs])
+    got = arcs_module._atan2(y, x)
+    assert np.array_equal(np.isnan(got), np.isnan(want))
+    ok = ~np.isnan(want)
+    assert np.array_equal(got[ok].view(np.uint64), want[ok].view(np.uint64))
+    tiny = arcs_module._atan2(np.array([5e-324, 1.0]), np.array([3.0, 2.0]))
+    assert tiny.tolist() == [math.atan2(5e-324, 3.0), math.atan2(1.0, 2.0)]
