@@ -98,9 +98,9 @@ def _atan2(y: np.ndarray, x: np.ndarray) -> np.ndarray:
     (numpy's arctan2 may be its own SIMD version, another last bit).
 
     Through ``cmath.phase`` of ``x + iy``: the same special cases and the same atan2
-    call as ``math.atan2`` (CPython's c_atan2 and m_atan2), at 2.4x the speed of a map
-    of ``math.atan2`` (one argument, one list); it raises where atan2 underflows, which
-    ``math.atan2`` lets pass: then ``math.atan2`` itself."""
+    call as ``math.atan2`` (CPython's c_atan2 and m_atan2), at 1.4x the speed of a map
+    of ``math.atan2`` (one argument, one list: 64 against 90 ms per million); it raises
+    where atan2 underflows, which ``math.atan2`` lets pass: then ``math.atan2`` itself."""
     z = np.empty(y.shape[0], dtype=np.complex128)
     z.real = x
     z.imag = y
@@ -117,9 +117,7 @@ def _plane_axes(plane: np.ndarray) -> tuple:
     else three (k,) int64 arrays and ``arange(k)``."""
     code = np.trunc(plane)
     if plane.shape[0] and (code == code[0]).all():
-        first = float(code[0])
-        axes = _PLANE_AXES.get(int(first), (0, 1, 2)) if first == first else (0, 1, 2)
-        return (*axes, slice(None))
+        return (*_PLANE_AXES.get(float(code[0]), (0, 1, 2)), slice(None))
     axes = np.tile(np.array([0, 1, 2], dtype=np.int64), (plane.shape[0], 1))
     for g, row in _PLANE_AXES.items():
         axes[code == g] = row

@@ -40,9 +40,9 @@ def _square(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return z, zz
 
 
-def _norms(ax: np.ndarray, ay: np.ndarray) -> np.ndarray:
-    """vector_norm of (ax[i], ay[i]) (absolute values, finite, the larger one normal)."""
-    top = np.maximum(ax, ay)
+def _norms(ax: np.ndarray, ay: np.ndarray, top: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """vector_norm of (ax[i], ay[i]) (absolute values, finite, the larger one ``top``
+    normal), and the power of two each pair was scaled by."""
     _, exponent = np.frexp(top)
     np.negative(exponent, out=exponent)
     scale = np.ldexp(1.0, exponent)
@@ -78,7 +78,7 @@ def _norms(ax: np.ndarray, ay: np.ndarray) -> np.ndarray:
     total /= twice
     h += total
     h /= scale
-    return h
+    return h, scale
 
 
 def hypot(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -94,9 +94,9 @@ def hypot(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     top = np.maximum(ax, ay)
     low = np.minimum(ax, ay)
     with np.errstate(all="ignore"):  # the pairs that would raise go to math.hypot below
+        out, scale = _norms(ax, ay, top)
         odd = ~(top < math.inf) | ~(low == low) | ((top < _SMALLEST_NORMAL) & (top > 0.0))
-        odd |= (low > 0.0) & (low < top * _TINY_SCALED)
-        out = _norms(ax, ay)
+        odd |= (low > 0.0) & (low * scale < _TINY_SCALED)
     out[top == 0.0] = 0.0
     for i in np.flatnonzero(odd).tolist():
         out[i] = math.hypot(float(x.flat[i]), float(y.flat[i]))
