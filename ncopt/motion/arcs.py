@@ -159,7 +159,7 @@ def _radii_refused(r0: np.ndarray, u1: np.ndarray, v1: np.ndarray,
     millionth of a millionth of its threshold."""
     t_abs = 2 * math.sqrt(2) * np.where(inch, 0.001 * MM_PER_INCH, 0.01)
     least = MIN_ARC_RADIUS_MM * (1.0 - 1e-9)
-    with np.errstate(divide="ignore", invalid="ignore"):  # 0/0: refused by the radius
+    with np.errstate(all="ignore"):  # 0/0, NaN: refused by the radius
         r1 = np.hypot(u1, v1)
         err = np.abs(r0 - r1)
         big = np.maximum(r0, r1)
