@@ -7,8 +7,9 @@ of computed words (``flow``), the checks a control makes (``checks``), the modal
 state (``modalstate``), the tool axis (``orientation``), the positions
 (``positions``), the points (``points``, ``arcs``) and the state per source line
 the writer needs (``linestate``).  Plain blocks are interpreted with vectorised
-forward fills (a 1M-block program in about a second); arcs and expressions take
-a per-line path.
+forward fills (a 1M-block program in about a second); arcs are worked out all at
+once too, bit for bit as the one-arc reference (``arcs``); expressions take a
+per-line path.
 
 Nothing is guessed: where the position cannot be known (a subprogram call, a
 macro, a return to home, a parameter the program does not set, an opaque

@@ -105,7 +105,8 @@ def _arc_pieces(prog, lines, modal, move_lines, arcs, prev_pt, end, both_known,
     (sum, 3), lengths (sum,)), all arcs at once (:func:`ncopt.motion.arcs.arcs_points`)."""
     counts = np.ones(move_lines.shape[0], dtype=np.int64)
     cut = arcs[both_known[arcs]]
-    n, pts, lengths = arcs_points(prog, lines, modal, move_lines[cut], prev_pt[cut], end[cut],
+    n, pts, lengths = arcs_points(prog, lines, modal, move_lines[cut],  # take: rows, faster
+                                  np.take(prev_pt, cut, axis=0), np.take(end, cut, axis=0),
                                   tol_mm)
     counts[cut] = n
     return counts, (cut, n, pts, lengths)
@@ -123,7 +124,9 @@ def _point_rows(end, seg_len, counts, pieces) -> tuple:
     lengths = np.zeros(n_pts)
     lengths[last_rows] = seg_len
     arc_moves, n, pts, piece_len = pieces
-    if arc_moves.size:  # each arc's pieces in its rows
+    if arc_moves.size and one_each:  # every arc one piece: its end, written above
+        lengths[arc_moves + 1] = piece_len
+    elif arc_moves.size:  # each arc's pieces in its rows
         first = np.concatenate(([0], np.cumsum(n)[:-1]))
         within = np.arange(pts.shape[0]) - np.repeat(first, n)
         at = np.repeat(rows[arc_moves] + 1, n) + within

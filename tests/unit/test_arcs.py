@@ -137,3 +137,98 @@ def test_arcs_in_chunks_are_the_reference_bit_for_bit(text):
         mp.setattr(arcs_module, "ARC_CHUNK", 3)
         chunked = _both(text)
     _same(chunked[0], _both(text)[1])
+
+
+def test_arcs_in_every_plane_in_one_program_are_the_reference_bit_for_bit():
+    """A chunk whose arcs are in more than one plane takes each arc's own axes."""
+    text = ("G21 G17 G0 X10 Y0 Z0\nG1 X10 F500\nG3 X0 Y10 I-10 J0\n"
+            "G18 G2 X5 Z-5 I5 K0\nG19 G3 Y5 Z0 J-5 K0 \nG17 G2 X10 Y0 R10\n"
+            "G18 G3 X10 Z5 R-7\nG19 G2 Y5 Z10 J0 K5\n")
+    a, b = _both(text)
+    _same(a, b)
+    assert not isinstance(a, str)
+
+
+ANY_FLOAT = st.floats(allow_nan=True, allow_infinity=True)
+
+
+@settings(max_examples=300)
+@given(st.lists(st.tuples(ANY_FLOAT, ANY_FLOAT), min_size=1, max_size=40))
+def test_numpy_hypot_is_math_hypot_bit_for_bit(pairs):
+    from ncopt.motion.mathhypot import hypot
+    x, y = (np.array(v, dtype=np.float64) for v in zip(*pairs))
+    want = np.array([math.hypot(a, b) for a, b in pairs])
+    got = hypot(x, y)
+    assert np.array_equal(got.view(np.uint64), want.view(np.uint64)) or (
+        np.array_equal(np.isnan(got), np.isnan(want))
+        and np.array_equal(got[~np.isnan(got)].view(np.uint64),
+                           want[~np.isnan(want)].view(np.uint64)))
+    zero = hypot(x, np.zeros_like(x))  # the path where every second part is 0
+    want = np.array([math.hypot(a, 0.0) for a in x.tolist()])
+    assert np.array_equal(np.isnan(zero), np.isnan(want))
+    assert np.array_equal(zero[~np.isnan(zero)], want[~np.isnan(want)])
+
+
+def test_numpy_hypot_on_many_random_pairs():
+    from ncopt.motion.mathhypot import hypot
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=200_000) * 10.0 ** rng.uniform(-6, 6, 200_000)
+    y = np.round(rng.uniform(-100, 100, 200_000), 4)
+    want = np.fromiter(map(math.hypot, x.tolist(), y.tolist()), np.float64, x.size)
+    assert np.array_equal(hypot(x, y).view(np.uint64), want.view(np.uint64))
+
+
+def _scalar_refused(r0, r1, inch):
+    """arc_points's radius test (math.hypot's r1)."""
+    t_abs = 2 * math.sqrt(2) * (0.001 * 25.4 if inch else 0.01)
+    err = abs(r0 - r1)
+    return (min(r0, r1) < arcs_module.MIN_ARC_RADIUS_MM * (1.0 - 1e-9) or err > 100 * t_abs
+            or (err > t_abs and err / max(r0, r1) > 0.001))
+
+
+def test_radius_tests_at_their_thresholds_are_the_reference():
+    """The end's radius is numpy's hypot but math.hypot's wherever a test is close."""
+    rng = np.random.default_rng(8)
+    n = 20_000
+    inch = rng.integers(0, 2, n).astype(bool)
+    t_abs = 2 * math.sqrt(2) * np.where(inch, 0.001 * 25.4, 0.01)
+    phi = rng.uniform(0, 2 * math.pi, n)
+    r1_target = rng.uniform(0.5, 20, n)
+    u1, v1 = r1_target * np.cos(phi), r1_target * np.sin(phi)
+    r1 = np.array([math.hypot(a, b) for a, b in zip(u1.tolist(), v1.tolist())])
+    # start radii a hair either side of each threshold
+    edge = np.choose(rng.integers(0, 3, n), [r1 + t_abs, r1 + 100 * t_abs, r1 / (1 - 0.001)])
+    r0 = edge * (1 + rng.choice([-1, 0, 1], n) * 2.0 ** -52)
+    small = rng.random(n) < 0.05  # and at the smallest radius
+    r0[small] = arcs_module.MIN_ARC_RADIUS_MM * (1.0 - 1e-9) * (1 + rng.choice([-1, 0, 1]) * 1e-15)
+    got = arcs_module._radii_refused(r0, u1, v1, inch)
+    want = [_scalar_refused(a, b, c) for a, b, c in zip(r0.tolist(), r1.tolist(), inch.tolist())]
+    assert got.tolist() == want
+
+
+def test_piece_counts_are_the_reference_next_to_whole_numbers():
+    rng = np.random.default_rng(9)
+    tol_mm = 0.005
+    r = np.concatenate([rng.uniform(0.001, 0.01, 500), rng.uniform(0.01, 100, 5000)])
+    step = np.array([2 * math.acos(max(1 - tol_mm / x, -1.0)) if tol_mm < x else math.pi / 2
+                     for x in r.tolist()])
+    whole = rng.integers(1, 2000, r.size).astype(np.float64)
+    sweep = whole * np.maximum(step, 1e-6) * (1 + rng.choice([-1, 0, 1, 1e6], r.size) * 2.0 ** -52)
+    got = arcs_module._piece_counts(sweep, r, tol_mm)
+    want = [min(max(int(math.ceil(s / max(st_, 1e-6))), 1), 100000)
+            for s, st_ in zip(sweep.tolist(), step.tolist())]
+    assert got.tolist() == want
+
+
+@settings(max_examples=300)
+@given(st.lists(st.tuples(ANY_FLOAT, ANY_FLOAT), min_size=1, max_size=40))
+def test_angles_of_many_pairs_are_math_atan2_bit_for_bit(pairs):
+    """cmath.phase's path and its fallback where atan2 underflows (tiny y over large x)."""
+    y, x = (np.array(v, dtype=np.float64) for v in zip(*pairs))
+    want = np.array([math.atan2(a, b) for a, b in pairs])
+    got = arcs_module._atan2(y, x)
+    assert np.array_equal(np.isnan(got), np.isnan(want))
+    ok = ~np.isnan(want)
+    assert np.array_equal(got[ok].view(np.uint64), want[ok].view(np.uint64))
+    tiny = arcs_module._atan2(np.array([5e-324, 1.0]), np.array([3.0, 2.0]))
+    assert tiny.tolist() == [math.atan2(5e-324, 3.0), math.atan2(1.0, 2.0)]
