@@ -79,9 +79,9 @@ class Program:
         :data:`VECTOR_WORD_CODES`.
     word_value : (n_words,) float64
         Numeric value; NaN where the value is an expression.
-    word_start, word_end : (n_words,) int64
+    word_start, word_end : (n_words,) int32 (int64 for a text of 2 GiB or more)
         Character span of the whole word (letter to last character of value).
-    word_num_start : (n_words,) int64
+    word_num_start : (n_words,) int32 (int64 likewise)
         Character offset where the value text starts (after letter and blanks).
     opaque_reason : dict[int, str]
         For OPAQUE lines: why ncopt leaves the line alone (0-based line -> text).

@@ -87,6 +87,7 @@ def vector_codes(words, address_at):
     ``CR=``): ``address_at`` (starts sorted, codes) from :func:`vector_words_read_plain`."""
     line, letter, value, start, end, num_start = words
     starts, codes = address_at
+    starts = starts.astype(start.dtype, copy=False)  # searched in the words' own dtype
     k = np.minimum(np.searchsorted(starts, start), starts.size - 1)
     at = starts[k] == start
     if at.any():
@@ -118,7 +119,8 @@ def fast_path_chunks(raw, line_start, content_end, classes, comments: CommentFor
     """
     n_lines = line_start.shape[0] - 1
     if n_lines <= FAST_CHUNK_LINES:
-        return [(0, 0) + _fast_path(raw, line_start, content_end, classes, comments)]
+        return [(0, 0) + _fast_path(raw, line_start, content_end, classes, comments,
+                                    offset_dtype(raw.shape[0]))]
 
     def chunk(a: int):
         b = min(a + FAST_CHUNK_LINES, n_lines)
@@ -131,23 +133,28 @@ def fast_path_chunks(raw, line_start, content_end, classes, comments: CommentFor
         return map_in_threads(chunk, range(0, n_lines, FAST_CHUNK_LINES), _THREADS)
 
 
-_WORD_DTYPES = (np.int32, np.uint8, np.float64, np.int64, np.int64, np.int64)
+def offset_dtype(n_bytes: int):
+    """The dtype of the words' character offsets in a text of ``n_bytes``: int32 below
+    2 GiB (a third less memory for the program's words than int64), else int64."""
+    return np.int32 if n_bytes < 2**31 else np.int64
 
 
-def joined(chunks: list):
+def joined(chunks: list, pos=np.int64):
     """(fast, blank, words) of the program from :func:`fast_path_chunks`: the chunks'
     flags and words one after the other, lines and offsets counted from the program's
-    start (words: line int32, letter uint8, value float64, start, end, number start
-    int64).  The list is emptied as it is read."""
-    if len(chunks) == 1:  # the whole program, from its start, offsets int64
-        return chunks.pop()[2:]
+    start (words: line int32, letter uint8, value float64, start, end, number start of
+    dtype ``pos``, :func:`offset_dtype` of the text).  The list is emptied as it is read."""
+    if len(chunks) == 1:  # the whole program, from its start
+        fast, blank, words = chunks.pop()[2:]
+        return fast, blank, tuple(w if k < 3 else w.astype(pos, copy=False)
+                                  for k, w in enumerate(words))
     fast = np.concatenate([c[2] for c in chunks])
     blank = np.concatenate([c[3] for c in chunks])
     parts = [[c[0], c[1]] + list(c[4]) for c in chunks]
     chunks.clear()
     total = sum(p[2].shape[0] for p in parts)
     words = []
-    for k, dtype in enumerate(_WORD_DTYPES):  # field by field, each chunk's part freed
+    for k, dtype in enumerate((np.int32, np.uint8, np.float64, pos, pos, pos)):  # field by field, each chunk's part freed
         out = np.empty(total, dtype=dtype)  # once copied: the peak holds one field twice
         at = 0
         for p in parts:

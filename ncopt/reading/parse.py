@@ -32,8 +32,8 @@ import numpy as np
 
 from ncopt.model import LineKind, Program
 from ncopt.reading.dialect import read_unit_codes
-from ncopt.reading.fastpath import (before_block_end, fast_path_chunks, joined, split_lines,
-                                    vector_codes, vector_words_read_plain)
+from ncopt.reading.fastpath import (before_block_end, fast_path_chunks, joined, offset_dtype,
+                                    split_lines, vector_codes, vector_words_read_plain)
 from ncopt.reading.fastcomments import comment_forms
 from ncopt.reading.grammar import byte_classes, dialect_name, fast_tables, grammar_path, parser
 from ncopt.reading.lineparse import parse_slow_lines
@@ -85,8 +85,9 @@ def parse_text(text: str, path: str = "<input>", *, dialect: str | None = None,
     chunks = fast_path_chunks(scan, line_start,
                               before_block_end(raw, line_start, content_end, block_end),
                               classes, comment_forms(name))
+    pos = offset_dtype(raw.shape[0])
     del data, raw, scan  # the text's bytes (and their copy, if any): not needed by the join
-    fast, blank, words = joined(chunks)
+    fast, blank, words = joined(chunks, pos)
     if address_at is not None:
         words = vector_codes(words, address_at)
     trailer = np.zeros(n_lines, dtype=bool)
@@ -124,9 +125,10 @@ def _empty(path: str, text: str) -> Program:
 def _assemble(path, text, line_start, kind, has_expr, fast_words, slow_words, opaque, exprs):
     if slow_words:
         cols = list(zip(*slow_words))
+        pos = fast_words[3].dtype  # the offsets' (ncopt.reading.fastpath.offset_dtype)
         slow = (np.array(cols[0], np.int32), np.array(cols[1], np.uint8),
-                np.array(cols[2], np.float64), np.array(cols[3], np.int64),
-                np.array(cols[4], np.int64), np.array(cols[5], np.int64))
+                np.array(cols[2], np.float64), np.array(cols[3], pos),
+                np.array(cols[4], pos), np.array(cols[5], pos))
         merged = [np.concatenate((a, b)) for a, b in zip(fast_words, slow)]
         order = np.argsort(merged[3], kind="stable")
         merged = [m[order] for m in merged]
