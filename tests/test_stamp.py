@@ -197,3 +197,42 @@ def test_the_stamp_is_no_operation_of_its_own_in_inspect(tmp_path):
 
         names.append([op["name"] for op in json.loads(shown.stdout)["operations"]])
     assert names[0] == names[1] and len(names[0]) == 1
+
+
+@pytest.mark.parametrize("s_plunge, f_plunge, options", [
+    (3000, 1000, {"cutting": "vc"}), (4000, 600, {"options": "forward"})])
+def test_a_second_run_keeps_plunges_the_program_gives_their_own_faster_s(
+        s_plunge, f_plunge, options):
+    """Passes of the sample bowl plunging at their own S3000 F1000 (S4000 F600) while the
+    cut runs S1393 F279: a second run read a plunge's feed per revolution at the stamped S0
+    (1393, not the S3000 the output no longer holds) and moved S and F on 7-126 lines by up
+    to 5.4 %.  The second run is the first byte for byte."""
+    import importlib.util
+    from pathlib import Path
+
+    import numpy as np
+
+    from ncopt.contacts.geometry import MeshIndex, load_stl
+    from ncopt.model import Cutter, CuttingData, PlanOptions
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("make_bowl_plunges", root / "samples/make_bowl.py")
+    bowl = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bowl)
+    xs = np.arange(-90.0, 90.0 + 1e-9, 3.0)
+    lines = ["(bowl strip with plunges)", "G21 G90 G94 G17", "T4 M6", "S1393 M3"]
+    for i, y in enumerate((44.0, 52.0, 60.0)):
+        row = xs if i % 2 == 0 else xs[::-1]
+        z = bowl.drop_ball_tip_z_mm(row, np.full(row.shape, y), 8.0)
+        lines += [f"G0 X{row[0]:.3f} Y{y:.3f} Z{z[0] + 5:.3f}", f"S{s_plunge}",
+                  f"G1 Z{z[0]:.3f} F{f_plunge}", "S1393", f"G1 X{row[1]:.3f} Z{z[1]:.3f} F279"]
+        lines += [f"G1 X{x:.3f} Z{h:.3f}" for x, h in zip(row[2:], z[2:])]
+        lines.append(f"G0 Z{z[-1] + 5:.3f}")
+    text = "\n".join(lines + ["M5", "M30"]) + "\n"
+    extra = ({"cutting": CuttingData(150, 0.08)} if options.get("cutting") else
+             {"options": PlanOptions(planner="forward")})
+    job = Job(machine=Machine(227, 15000), cutter=Cutter(16, 2), shape_named=True,
+              operations=("all",), **extra)
+    mesh = MeshIndex(load_stl(root / "samples/bowl.stl"))
+    first = rewrite_text(text, job, "p.nc", mesh).text
+    assert first != text
+    assert rewrite_text(first, job, "p.nc", mesh).text == first

@@ -282,10 +282,16 @@ def _feed_roles(tp: Toolpath, fp: np.ndarray, blocks: schedule.Blocks, mine: np.
         # a plunge still at the operation's own feed kept its F while ncopt raised S: its
         # feed per revolution is the one the program gave it at its own S0, as in the
         # first rewrite (a second rewrite then plans the same)
-        # Any other plunge: its F was the program's times at most S/S0 (never raised), so
-        # its feed per revolution is F over the lower of S0 and the speed replayed
+        # A G93 plunge: its F was the program's times at most S/S0 (never raised), so its
+        # feed per revolution is F over the lower of S0 and the speed replayed (the S words
+        # of such programs are the operation's own; boat-xyzac.ngc planned 9-12 % slower
+        # on a second run where read at the replayed speed).  Not elsewhere: a plunge the
+        # program gives its own faster S (S3000 where the cut runs S1393) is read at
+        # neither (the output does not keep that S), and S0 would misread it more.
         at_f0 = plunge & (np.abs(feed - f0) <= 1.5 * max(opts.f_quantum_mm_min, FEED_MATCH))
-        s_ref = np.where(at_f0, s0, np.where(plunge, np.minimum(s0, s_ref), s_ref))
+        lower = (np.zeros_like(plunge) if tp.inverse_time is None
+                 else plunge & tp.inverse_time[fp])
+        s_ref = np.where(at_f0, s0, np.where(lower, np.minimum(s0, s_ref), s_ref))
     return _FeedRoles(feed, s_ref, off_feed, plunge, f0, s0)
 
 

@@ -406,3 +406,50 @@ def test_a_fall_toward_a_block_the_program_keeps_lower_stays_within_the_profile(
     em = schedule.emit_rpm(profile, b, incs, opts, s_lo, ratio, s_hi=s_hi)
     assert np.all(em.s_cmd_rpm[cuts] <= profile.s_rpm[cuts] + 1.0)
     assert em.s_cmd_rpm[10] < 554.0  # the word of the old excess
+
+
+def test_a_full_step_down_never_crosses_the_blocks_own_band_floor():
+    """A forced fall smaller than --min-rpm-step (16) became a full step to S299, one RPM
+    below the fz band's floor for the spindle still at 330.4 RPM in that block (F from the
+    lowest speed): fz 0.003 % under its band (a case of test_properties' random runs).
+    The full step is taken only where it stays within the block's band."""
+    F, T = False, True
+    b = schedule.Blocks(
+        length_mm=np.array([
+            0.89842116, 2.77049919, 1.59300144, 4.76466962, 3.84122682, 2.80256018,
+            3.66405339, 0.16928337, 1.78513202, 4.87197308, 4.23569033, 3.64697279,
+            2.90711781, 2.50545672, 3.75467333, 0.83784583, 0.04366095, 3.30693493,
+            2.39075785, 4.84890672, 2.42645832, 4.58571395, 2.00001, 1.51435795, 0.80104327,
+            0.7966265, 1.61561788, 0.844296, 1.35725106]),
+        req_rpm=np.array([
+            np.inf, np.inf, 35946.31392411, np.inf, 11972.66398855, np.inf, np.inf,
+            13759.76286985, np.inf, np.inf, 300., 360., 300., 13841.17192776, np.inf,
+            np.inf, 8852.64809843, np.inf, np.inf, 22202.94411498, np.inf, np.inf, np.inf,
+            np.inf, np.inf, 29582.70449545, np.inf, np.inf, np.inf]),
+        cutting=np.array([
+            F, F, T, F, F, F, F, T, T, F, F, F, F, T, F, F, F, T, T, F, F, F, F, F, F, F, F,
+            F, T]),
+        planned=np.array([
+            T, T, T, F, F, T, F, T, T, T, F, T, T, T, T, F, F, T, T, T, F, F, T, F, T, F, T,
+            F, T]),
+        time_s=np.array([
+            8.98421160e-01, 1.00000000e-03, 1.59300144e+00, 1.00000000e-03, 1.00000000e-03,
+            1.00000000e-03, 1.00000000e-03, 1.69283368e-01, 1.78513202e+00, 1.00000000e-03,
+            1.00000000e-03, 1.00000000e-03, 1.00000000e-03, 1.00000000e-03, 1.00000000e-03,
+            8.37845830e-01, 4.36609455e-02, 1.00000000e-03, 1.00000000e-03, 1.00000000e-03,
+            1.00000000e-03, 1.00000000e-03, 1.00000000e-03, 1.51435795e+00, 8.01043273e-01,
+            7.96626501e-01, 1.61561788e+00, 8.44296003e-01, 1.35725106e+00]),
+        fixed_rpm=np.full(29, 301.0))
+    machine = Machine(accel_rad_s2=66.5469267672768, max_rpm=22187.64373438376,
+                      min_rpm=28.372686712254687, max_feed_mm_min=5000.0)
+    cut = CuttingData(vc_m_min=100.0, fz_mm=0.14951868212349337)
+    opts = PlanOptions(min_rpm_step=16.0, fz_tolerance=0.09490863374665456, fz_policy="below")
+    profile = schedule.lookahead(b, machine, cut, 3, opts)
+    incs = schedule.increments(b, machine, profile.k_rpm2_per_mm)
+    s_lo, s_hi = schedule.speed_limits(machine, cut, 3)
+    cuts = b.cutting & b.planned
+    ratio = schedule.max_speed_ratio(opts, cut, 3, float(profile.cap_rpm[cuts].min()))
+    cmd, low, high = schedule.emit_rpm(profile, b, incs, opts, s_lo, ratio, s_hi=s_hi)
+    f = schedule.feeds(low, high, b, cut, 3, machine.max_feed_mm_min, "below")
+    fz_lowest = f[cuts] / (3 * high[cuts])
+    assert np.all(fz_lowest >= cut.fz_mm * (1 - opts.fz_tolerance) * (1 - 1e-9))
