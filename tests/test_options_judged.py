@@ -661,6 +661,13 @@ FIXED = {
         Case("dome6", surface("dome", 6, s_rpm=9000, f_mm_min=300.0, crlf=True), 9000.0,
              300.0, 6.0, {"--accel": "227", "--max-rpm": "8000", "--vc": "10", "--fz": "0.1",
                           "--fz-band": "0.3"})),
+    "a full step down across the band": (
+        "one pass of the bowl with its mesh, --accel 751 --fz-band 20 --min-rpm-step 2000: "
+        "a forced fall of one step S4703 -> S2703 inside one block, below the band's floor "
+        "for the spindle there (fz 21.9 % off in a 20 % band, no warning)",
+        Case("bowl1", bowl_strip(make_bowl.drop_ball_tip_z_mm, (44.0,), 3.0, crlf=True), 1393.0,
+             279.0, 16.0, {"--accel": "751", "--max-rpm": "15000", "--fz-band": "20",
+                           "--min-rpm-step": "2000", "--operations": "all"}, mesh=True)),
 }
 
 
