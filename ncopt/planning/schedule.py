@@ -69,15 +69,15 @@ def lookahead(blocks: Blocks, machine: Machine, cut: CuttingData, teeth: int,
     ratio = max_speed_ratio(opts, cut, teeth, s_low_cut)
     cutting = blocks.cutting & blocks.planned
     s, ratio_inc = _solve(cap, inc_s2, inc_s, cutting, ratio, s_low_cut, opts)
-    # the reserve is kept at the lowest speed a cut is planned at: a fall toward a block
-    # ncopt leaves at a lower S (the program's own) takes the cuts before it below the
-    # lowest requirement, where 2 RPM are more of each block's ratio (a chain of falls
-    # each rounded up by < 1 RPM ran 1.1 RPM over the profile at 552.9 RPM)
-    reached = float(s[cutting].min()) if cutting.any() else None
-    if reached is not None and s_low_cut is not None and reached < s_low_cut - 1e-9:
-        # (where the band leaves no such reserve there, the first profile stays; the real
-        # speed after a block ncopt leaves is bounded as before, :func:`_after_fixed`)
-        s, _ = _solve(cap, inc_s2, inc_s, cutting, ratio, reached, opts, (s, ratio_inc))
+    # the reserve is kept at each block's own speed where a cut is planned below the lowest
+    # requirement: a fall toward a block ncopt leaves at a lower S (the program's own) takes
+    # the cuts before it there, where 2 RPM are more of each block's ratio (a chain of falls
+    # each rounded up by < 1 RPM ran 1.1 RPM over the profile at 552.9 RPM); the real speed
+    # after a block ncopt leaves is bounded as before (:func:`_after_fixed`)
+    if cutting.any() and s_low_cut is not None and float(s[cutting].min()) < s_low_cut - 1e-9:
+        base = np.minimum(s, np.concatenate((s[:1], s[:-1])))  # the slower end of each link
+        s, _ = _solve(cap, inc_s2, inc_s, cutting, ratio, np.minimum(base, s_low_cut), opts,
+                      ratio_inc)
     s = np.maximum(s, np.minimum(s_lo, cap))
     s = _after_fixed(s, blocks, inc_s2, inc_s, ratio_inc, machine.max_rpm)  # with the reserve
     return Profile(s_rpm=s, cap_rpm=cap, k_rpm2_per_mm=k)
@@ -86,16 +86,19 @@ def lookahead(blocks: Blocks, machine: Machine, cut: CuttingData, teeth: int,
 def _solve(cap, inc_s2, inc_s, cutting, ratio, s_reserve, opts, fallback=None):
     """(profile, per-block log-ratio budget): the largest profile under ``cap`` within the
     spindle's increments and the fz band's per-block ``ratio``, less a reserve of 2 RPM at
-    ``s_reserve`` for the rounding of integer S words (:func:`lookahead`).  Where the band
-    leaves no reserve: ``fallback`` if given, else a PlanningError."""
+    ``s_reserve`` (RPM, or (nb,) RPM per block) for the rounding of integer S words
+    (:func:`lookahead`).  ``fallback``: a per-block budget found before, kept where the
+    band leaves no reserve at ``s_reserve``; without it such a band is a PlanningError."""
     # integer S words round each fall up by < 1 RPM: the profile keeps 2 RPM at the lowest
     # cutting speed in reserve per block, so the words never lag behind it
-    budget = np.log(ratio) * (1.0 - PLAN_MARGIN) - (2.0 / s_reserve if s_reserve else 0.0)
-    if budget <= 0:
-        if fallback is not None:
-            return fallback
-        raise PlanningError(f"an fz band of {100 * opts.fz_tolerance:g} % is too narrow for "
-                            f"integer S words at {s_reserve:.0f} RPM; widen --fz-band")
+    if fallback is not None:
+        budget = np.log(ratio) * (1.0 - PLAN_MARGIN) - 2.0 / np.maximum(s_reserve, 1e-300)
+        budget = np.where(budget > 0, budget, fallback)
+    else:
+        budget = np.log(ratio) * (1.0 - PLAN_MARGIN) - (2.0 / s_reserve if s_reserve else 0.0)
+        if budget <= 0:
+            raise PlanningError(f"an fz band of {100 * opts.fz_tolerance:g} % is too narrow "
+                                f"for integer S words at {s_reserve:.0f} RPM; widen --fz-band")
     ratio_inc = np.where(cutting, budget, np.inf)
     s = cap.copy()
     # the chains depend on the increments alone: found once, used by every iteration
