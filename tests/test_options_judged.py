@@ -661,6 +661,14 @@ FIXED = {
         Case("dome6", surface("dome", 6, s_rpm=9000, f_mm_min=300.0, crlf=True), 9000.0,
              300.0, 6.0, {"--accel": "227", "--max-rpm": "8000", "--vc": "10", "--fz": "0.1",
                           "--fz-band": "0.3"})),
+    "plunges at the program's own S, read again": (
+        "the dome with lifts, plunges at F150 under a cut at F300, S2000, --planner forward "
+        "--vc 80 --fz 0.02: a second rewrite read the plunges' feed per revolution at the "
+        "speed replayed (ncopt's) and changed 24 lines; with one S over the operation "
+        "(the stamp's S0=) it is read over S0 (the same at acae37c)",
+        Case("dome6-lifts", surface("dome", 6, lifts=True, crlf=True, s_rpm=2000,
+                                    f_mm_min=300.0, plunge_mm_min=150.0), 2000.0, 300.0, 6.0,
+             {**SPINDLE, "--planner": "forward", "--vc": "80", "--fz": "0.02"})),
     "a full step down across the band": (
         "one pass of the bowl with its mesh, --accel 751 --fz-band 20 --min-rpm-step 2000: "
         "a forced fall of one step S4703 -> S2703 inside one block, below the band's floor "

@@ -206,7 +206,8 @@ def test_a_second_run_keeps_plunges_the_program_gives_their_own_faster_s(
     """Passes of the sample bowl plunging at their own S3000 F1000 (S4000 F600) while the
     cut runs S1393 F279: a second run read a plunge's feed per revolution at the stamped S0
     (1393, not the S3000 the output no longer holds) and moved S and F on 7-126 lines by up
-    to 5.4 %.  The second run is the first byte for byte."""
+    to 5.4 %.  The stamp says the S varied (``S0~1393``): the second run reads such plunges
+    at the speed replayed, and is the first byte for byte."""
     import importlib.util
     from pathlib import Path
 
@@ -235,4 +236,5 @@ def test_a_second_run_keeps_plunges_the_program_gives_their_own_faster_s(
     mesh = MeshIndex(load_stl(root / "samples/bowl.stl"))
     first = rewrite_text(text, job, "p.nc", mesh).text
     assert first != text
+    assert "(ncopt T4 D=16mm r=8mm z=2 S0~1393 F0=279mm/min)" in first  # S varied: S0~
     assert rewrite_text(first, job, "p.nc", mesh).text == first

@@ -29,7 +29,8 @@ VERTICAL = 0.9
 
 # An operation's own S (RPM) and cutting feed (mm/min) as an ncopt stamp records them,
 # and the spindle its S and F were planned for: (accel rad/s^2, max RPM), None: not said
-Intent = tuple[float, float, tuple[float, float] | None]
+# and whether the program's own S varied over the operation (the stamp's S0~)
+Intent = tuple[float, float, tuple[float, float] | None, bool]
 
 
 def feed_intent(blocks, feed, s_prog, mine, machine, cut, cutter, opts, intent: Intent | None,
@@ -52,7 +53,7 @@ def feed_intent(blocks, feed, s_prog, mine, machine, cut, cutter, opts, intent: 
         s0 = (weighted_median(s_prog[mine], blocks.length_mm[mine], unweighted_middle=True)
               if mine.any() else 0.0)
         return s_prog, np.abs(feed - f0) > match, f0, s0
-    s0, f0, spindle = intent
+    s0, f0, spindle = intent[:3]
     if spindle is not None:  # the S and F written were planned for the stamped spindle
         machine = replace(machine, accel_rad_s2=spindle[0], max_rpm=spindle[1])
     fixed = replace(blocks, planned=np.zeros_like(blocks.planned))

@@ -65,6 +65,7 @@ class OpPlan:
     passes: int = 0  # runs of cutting blocks (ncopt.planning.passes.pass_ids)
     cut_time_min: float = 0.0  # its cutting blocks at the planned F
     other_time_min: float = float("nan")  # the same with the other --s-changes mode
+    s_varies: bool = False  # the program's own S is not one value over the operation's cuts
 
 
 @dataclass(frozen=True)
@@ -160,7 +161,17 @@ def _plan_window(k: int, op: Operation, view: ToolView, cut: CuttingData, source
                   coarse_lines=idx.line[win][coarse], s_low_rpm=emitted.s_low_rpm,
                   passes=int(passes.pass_ids(blocks, sep).max(initial=-1)) + 1,
                   cut_time_min=_feed_time(blocks.length_mm, f, opts.f_quantum_mm_min),
-                  other_time_min=other)
+                  other_time_min=other, s_varies=_s_varies(tp, fp, w.mine, intent))
+
+
+def _s_varies(tp: Toolpath, fp: np.ndarray, mine: np.ndarray, intent: Intent | None) -> bool:
+    """Whether the program's own S takes more than one value over the operation's moves
+    (for an ncopt output: as its stamp says, its S words being ncopt's)."""
+    if intent is not None:
+        return bool(intent[3])
+    s = tp.spindle_rpm[fp][mine]
+    s = s[np.isfinite(s) & (s > 0)]
+    return bool(s.size) and bool(s.min() != s.max())
 
 
 def _coarse_feeds(plan: OpPlan, mine: np.ndarray, opts: PlanOptions) -> np.ndarray:
@@ -282,15 +293,15 @@ def _feed_roles(tp: Toolpath, fp: np.ndarray, blocks: schedule.Blocks, mine: np.
         # a plunge still at the operation's own feed kept its F while ncopt raised S: its
         # feed per revolution is the one the program gave it at its own S0, as in the
         # first rewrite (a second rewrite then plans the same)
-        # A G93 plunge: its F was the program's times at most S/S0 (never raised), so its
-        # feed per revolution is F over the lower of S0 and the speed replayed (the S words
-        # of such programs are the operation's own; boat-xyzac.ngc planned 9-12 % slower
-        # on a second run where read at the replayed speed).  Not elsewhere: a plunge the
-        # program gives its own faster S (S3000 where the cut runs S1393) is read at
-        # neither (the output does not keep that S), and S0 would misread it more.
+        # A plunge where the operation's S was one value (the stamp's S0=, not S0~), or in
+        # G93: its F was the program's times at most S/S0 (never raised), so its feed per
+        # revolution is F over the lower of S0 and the speed replayed (boat-xyzac.ngc
+        # planned 9-12 % slower on a second run where read at the replayed speed).  Not
+        # where the program's S varied: a plunge it gave its own faster S (S3000 where the
+        # cut runs S1393) is read at neither (the output no longer holds that S).
         at_f0 = plunge & (np.abs(feed - f0) <= 1.5 * max(opts.f_quantum_mm_min, FEED_MATCH))
-        lower = (np.zeros_like(plunge) if tp.inverse_time is None
-                 else plunge & tp.inverse_time[fp])
+        lower = plunge if not intent[3] else (
+            np.zeros_like(plunge) if tp.inverse_time is None else plunge & tp.inverse_time[fp])
         s_ref = np.where(at_f0, s0, np.where(lower, np.minimum(s0, s_ref), s_ref))
     return _FeedRoles(feed, s_ref, off_feed, plunge, f0, s0)
 

@@ -29,6 +29,8 @@ from ncopt.reading.stampline import INFO_BODY, STAMP_START
 #   (ncopt T4 lines=1-21902 vc=70.0198 fz=0.100144 band=2)
 #   (ncopt T4 D=16mm r=8mm z=2 S0=1393 F0=279mm/min)
 #
+# (``S0~1393``: the program's S was not one value over the operation, 1393 its median)
+#
 # two lines per planned operation (a third, ``(ncopt T2 roughing ap=3mm)``, for a roughing
 # operation planned on the remaining material of its step-down) (T? where the program names no tool); its lines are
 # numbered as in the program without the stamp lines; lengths are always mm.  A re-run
@@ -45,7 +47,7 @@ _INTENT = re.compile(r"\bS0=(?P<s0>[\d.]+) F0=(?P<f0>[\d.]+)")
 _OP_A = re.compile(STAMP_START + r"T(?P<tool>-?\d+|\?) lines=(?P<a>\d+)-(?P<b>\d+) "
                    r"vc=(?P<vc>[\d.]+) fz=(?P<fz>[\d.]+)(?: band=(?P<band>[\d.]+))?\s*\)?\s*$")
 _OP_B = re.compile(STAMP_START + r"T(?P<tool>-?\d+|\?) D=(?P<d>[\d.]+)mm "
-                   r"r=(?P<r>[\d.]+)mm z=(?P<z>\d+)(?: S0=(?P<s0>[\d.]+) "
+                   r"r=(?P<r>[\d.]+)mm z=(?P<z>\d+)(?: S0(?P<s0op>[=~])(?P<s0>[\d.]+) "
                    r"F0=(?P<f0>[\d.]+)mm/min)?\s*\)?\s*$")
 # a roughing operation planned where the edge meets the remaining material (a third line)
 _OP_C = re.compile(STAMP_START + r"T(?P<tool>-?\d+|\?) roughing ap=(?P<ap>[\d.]+)mm\s*\)?\s*$")
@@ -74,6 +76,7 @@ class Stamp:
     s0_rpm: float = 0.0  # the operation's own S and cutting feed before ncopt (S0=0: the
     f0_mm_min: float = 0.0  # program gave no S); F0 0: not stamped
     ap_mm: float = float("nan")  # roughing: the material height its contacts took, mm
+    s0_varies: bool = False  # the program's own S was not one value (S0~: S0 its median)
 
 
 class Stamps(dict):
@@ -152,7 +155,8 @@ def _add(found, line, tool, op, vc, fz, d, r, z, band, intent) -> None:
     found[(tool, op)] = Stamp(
         tool, CuttingData(float(vc), float(fz)), Cutter(float(d), int(z), float(r)), line, op,
         float(band["band"]) if band else None,
-        float(intent["s0"]) if intent else 0.0, float(intent["f0"]) if intent else 0.0)
+        float(intent["s0"]) if intent else 0.0, float(intent["f0"]) if intent else 0.0,
+        s0_varies=bool(intent) and intent.groupdict().get("s0op") == "~")
 
 
 def stamp_for(stamps: dict[tuple, Stamp], tool: int, lines: tuple) -> Stamp | None:
@@ -206,7 +210,9 @@ def _plan_lines(plans, band_pct: float | None) -> list[str]:
         # the operation's own S and cutting feed (S0=0: the program gives no S, it was
         # planned from --vc and --fz), where its cutting feed is known
         s0, f0 = p.s0_rpm, p.cutting_feed_mm_min
-        own = (f" S0={max(s0, 0.0):.10g} F0={f0:.10g}mm/min" if 0 < f0 < 1e12 else "")
+        # (S0~: the program's S varied over the operation, S0 is its median)
+        op = "~" if getattr(p, "s_varies", False) else "="
+        own = (f" S0{op}{max(s0, 0.0):.10g} F0={f0:.10g}mm/min" if 0 < f0 < 1e12 else "")
         out.append(f"ncopt {t} D={p.cutter.diameter_mm:g}mm r={p.cutter.corner_radius_mm:g}mm "
                    f"z={p.cutter.teeth}{own}")
         ap = getattr(p, "ap_mm", float("nan"))
