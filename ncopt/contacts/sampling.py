@@ -44,6 +44,8 @@ from typing import Callable
 
 import numpy as np
 
+from ncopt.motion.modal import sorted_unique
+
 # at most this many levels of halving: a 1e9 mm move halves down to 0.1 mm in 34
 MAX_LEVELS = 64
 
@@ -159,17 +161,8 @@ def _around(new: np.ndarray, n_intervals: int) -> np.ndarray:
     ``j`` only (the dense bench case: 1M samples, then 17, 1, 1, 1 new ones).
     """
     i = (new[:, None] + np.arange(-2, 2)).ravel()
-    return _unique(i[(i >= 0) & (i < n_intervals)])
-
-
-def _unique(a: np.ndarray) -> np.ndarray:
-    """``np.unique(a)`` of integers by a sort (numpy 2.4's hashed unique took 10 times as
-    long on such nearly sorted indices: 0.34 against 0.03 s for 240k)."""
-    a = np.sort(a)
-    keep = np.empty(a.size, dtype=bool)
-    keep[:1] = True
-    np.not_equal(a[1:], a[:-1], out=keep[1:])
-    return a[keep]
+    # (numpy 2.4's hashed unique took 10 times as long on such nearly sorted indices)
+    return sorted_unique(np.sort(i[(i >= 0) & (i < n_intervals)]))
 
 
 def _cl_points(path: np.ndarray, sel: np.ndarray) -> _Anchors:
@@ -202,7 +195,7 @@ def _splits(anchors: _Anchors, ref: Refinement, near: np.ndarray | None = None) 
     (sorted), judged on the samples around them; None: all."""
     if near is not None:
         rows = (near[:, None] + np.arange(-1, 3)).ravel()
-        rows = _unique(rows[(rows >= 0) & (rows < anchors.p.size)])
+        rows = sorted_unique(np.sort(rows[(rows >= 0) & (rows < anchors.p.size)]))
         k, move, frac = _splits(_Anchors(anchors.p[rows], anchors.f[rows], anchors.s[rows],
                                          anchors.run[rows], anchors.probe.take(rows)), ref)
         k_full = rows[k]  # a pair of rows that are neighbours in the whole is an interval
