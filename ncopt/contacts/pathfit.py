@@ -160,7 +160,6 @@ def _closest(dist: np.ndarray, other: np.ndarray) -> np.ndarray:
     if rest.size:
         closest[rest] = np.where(other[:, rest], dist[:, rest], np.inf).min(axis=0)
     return closest
-    return n, conf, closest
 
 
 def _offsets_across(pts, xyz, nb, u, v):
