@@ -10,6 +10,7 @@ one ncopt writes for the stamped fz, so a second rewrite plans the same.
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -27,10 +28,18 @@ FEED_MATCH_G93 = 1e-3
 # not say what the operation's cutting feed is, however long such moves are together
 VERTICAL = 0.9
 
-# An operation's own S (RPM) and cutting feed (mm/min) as an ncopt stamp records them,
-# and the spindle its S and F were planned for: (accel rad/s^2, max RPM), None: not said
-# and whether the program's own S varied over the operation (the stamp's S0~)
-Intent = tuple[float, float, tuple[float, float] | None, bool]
+class Intent(NamedTuple):
+    """An operation as an ncopt stamp records it (the program is an ncopt output).
+
+    s0_rpm, f0_mm_min : its own S and cutting feed before ncopt;  spindle : (accel
+    rad/s^2, max RPM) its S and F were planned for, None: not said;  s0_varies : the
+    program's own S was not one value over the operation (the stamp's ``S0~``)
+    """
+
+    s0_rpm: float
+    f0_mm_min: float
+    spindle: tuple[float, float] | None
+    s0_varies: bool
 
 
 def feed_intent(blocks, feed, s_prog, mine, machine, cut, cutter, opts, intent: Intent | None,
@@ -53,7 +62,7 @@ def feed_intent(blocks, feed, s_prog, mine, machine, cut, cutter, opts, intent: 
         s0 = (weighted_median(s_prog[mine], blocks.length_mm[mine], unweighted_middle=True)
               if mine.any() else 0.0)
         return s_prog, np.abs(feed - f0) > match, f0, s0
-    s0, f0, spindle = intent[:3]
+    s0, f0, spindle = intent.s0_rpm, intent.f0_mm_min, intent.spindle
     if spindle is not None:  # the S and F written were planned for the stamped spindle
         machine = replace(machine, accel_rad_s2=spindle[0], max_rpm=spindle[1])
     fixed = replace(blocks, planned=np.zeros_like(blocks.planned))

@@ -168,7 +168,7 @@ def _s_varies(tp: Toolpath, fp: np.ndarray, mine: np.ndarray, intent: Intent | N
     """Whether the program's own S takes more than one value over the operation's moves
     (for an ncopt output: as its stamp says, its S words being ncopt's)."""
     if intent is not None:
-        return bool(intent[3])
+        return intent.s0_varies
     s = tp.spindle_rpm[fp][mine]
     s = s[np.isfinite(s) & (s > 0)]
     return bool(s.size) and bool(s.min() != s.max())
@@ -284,24 +284,25 @@ def _feed_roles(tp: Toolpath, fp: np.ndarray, blocks: schedule.Blocks, mine: np.
     from the moves of the operation's own blocks that are not near the tool axis."""
     feed = tp.feed_mm_min[fp]
     plunge, vertical = _plunges(tp, fp)
-    match = FEED_MATCH if tp.inverse_time is None else np.where(
-        tp.inverse_time[fp], FEED_MATCH_G93 * np.abs(feed), FEED_MATCH)
+    g93 = None if tp.inverse_time is None else tp.inverse_time[fp]  # per block
+    match = FEED_MATCH if g93 is None else np.where(g93, FEED_MATCH_G93 * np.abs(feed),
+                                                    FEED_MATCH)
     s_ref, off_feed, f0, s0 = feed_intent(
         blocks, feed, tp.spindle_rpm[fp], mine & ~vertical, machine, cut, cutter, opts, intent,
-        match, None if tp.inverse_time is None else tp.inverse_time[fp])
+        match, g93)
     if intent is not None:
         # a plunge still at the operation's own feed kept its F while ncopt raised S: its
         # feed per revolution is the one the program gave it at its own S0, as in the
-        # first rewrite (a second rewrite then plans the same)
-        # A plunge where the operation's S was one value (the stamp's S0=, not S0~), or in
-        # G93: its F was the program's times at most S/S0 (never raised), so its feed per
-        # revolution is F over the lower of S0 and the speed replayed (boat-xyzac.ngc
-        # planned 9-12 % slower on a second run where read at the replayed speed).  Not
-        # where the program's S varied: a plunge it gave its own faster S (S3000 where the
-        # cut runs S1393) is read at neither (the output no longer holds that S).
+        # first rewrite (a second rewrite then plans the same).  Any other plunge where
+        # the operation's S was one value (the stamp's S0=, not S0~), or in G93: its F was
+        # the program's times at most S/S0 (never raised), so its feed per revolution is
+        # F over the lower of S0 and the speed replayed (boat-xyzac.ngc planned 9-12 %
+        # slower on a second run where read at the replayed speed).  Not where the
+        # program's S varied: a plunge it gave its own faster S (S3000 where the cut runs
+        # S1393) is read at neither (the output no longer holds that S).
         at_f0 = plunge & (np.abs(feed - f0) <= 1.5 * max(opts.f_quantum_mm_min, FEED_MATCH))
-        lower = plunge if not intent[3] else (
-            np.zeros_like(plunge) if tp.inverse_time is None else plunge & tp.inverse_time[fp])
+        lower = plunge if not intent.s0_varies else (
+            np.zeros_like(plunge) if g93 is None else plunge & g93)
         s_ref = np.where(at_f0, s0, np.where(lower, np.minimum(s0, s_ref), s_ref))
     return _FeedRoles(feed, s_ref, off_feed, plunge, f0, s0)
 

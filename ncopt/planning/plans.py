@@ -105,12 +105,11 @@ def plan_program(prog: Program, tp: Toolpath, idx: schedule.BlockIndex, job,
 
 
 def _intent(stamps: Stamps, tool: int, lines: tuple[int, int]) -> Intent | None:
-    """(S0 RPM, F0 mm/min, the spindle planned for, whether the program's S varied) of
-    an operation an ncopt stamp records (the program is an ncopt output); None: read
-    from the program."""
+    """The :class:`~ncopt.planning.intent.Intent` of an operation an ncopt stamp records
+    (the program is an ncopt output); None: read from the program."""
     stamp = stamp_for(stamps, tool, lines)
-    return ((stamp.s0_rpm, stamp.f0_mm_min, getattr(stamps, "spindle", None), stamp.s0_varies)
-            if stamp and stamp.f0_mm_min else None)
+    return (Intent(stamp.s0_rpm, stamp.f0_mm_min, getattr(stamps, "spindle", None),
+                   stamp.s0_varies) if stamp and stamp.f0_mm_min else None)
 
 
 def _r_floor_mm(job, judged: Judged, tool: int, cutter: Cutter) -> float:
