@@ -154,7 +154,8 @@ def joined(chunks: list, pos=np.int64):
     chunks.clear()
     total = sum(p[2].shape[0] for p in parts)
     words = []
-    for k, dtype in enumerate((np.int32, np.uint8, np.float64, pos, pos, pos)):  # field by field, each chunk's part freed
+    # field by field, each chunk's part freed
+    for k, dtype in enumerate((np.int32, np.uint8, np.float64, pos, pos, pos)):
         out = np.empty(total, dtype=dtype)  # once copied: the peak holds one field twice
         at = 0
         for p in parts:
